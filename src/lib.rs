@@ -1,0 +1,16 @@
+//! texsyn: real-time appearance-space texture synthesis (Lefebvre & Hoppe 2006) on wgpu.
+//!
+//! Layout: [`analysis`] (host preprocessing of the exemplar) | [`passes`] (the synthesis
+//! plan and CPU mirrors of the WGSL passes) | [`gpu`] (device, pipelines, synthesis on
+//! the GPU) | [`quality`] (figures for evaluation) | [`image_io`] (files).
+
+pub mod analysis;
+pub mod error;
+pub mod gpu;
+pub mod image_io;
+pub mod passes;
+pub mod quality;
+
+pub use analysis::{Analysis, AnalysisOptions, Exemplar};
+pub use error::{Error, Result};
+pub use passes::SynthParams;

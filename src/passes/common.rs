@@ -1,0 +1,120 @@
+//! Mirror of `shaders/shared/common.wgsl`: the hash, coordinate wrapping and clamping,
+//! and the uniform block every pass reads.
+
+use bytemuck::{Pod, Zeroable};
+
+/// Uniform block shared by every pass (one copy per dispatch, at a dynamic offset).
+/// Layout must match `Params` in `shaders/shared/common.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
+pub struct PassParams {
+    /// Exemplar width, height.
+    pub ex_size: [i32; 2],
+    /// Absolute position of this level's region origin, and the region size.
+    pub origin: [i32; 2],
+    pub size: [i32; 2],
+    /// Same for the parent (coarser) level; upsample reads it.
+    pub parent_origin: [i32; 2],
+    pub parent_size: [i32; 2],
+    /// Correction subpass parity (absolute pixel position mod 2).
+    pub parity: [i32; 2],
+    /// `h_l`.
+    pub spacing: i32,
+    /// 1 if coordinates wrap around the exemplar, 0 if they are clamped to the margin.
+    pub tileable: i32,
+    /// Valid-region margin (non-tileable).
+    pub margin: i32,
+    /// Level index `l`.
+    pub level: u32,
+    pub seed: u32,
+    /// Jitter amplitude `h_l * r_l` in 1/16 pixel.
+    pub jitter_amp: i32,
+    /// Similarity-set size.
+    pub k: i32,
+    /// Right shift applied to projected neighbourhoods.
+    pub shift: u32,
+    /// Coherence bias in 1/16: non-coherent candidates pay `dist * (1 + bias/16)`.
+    pub coherence: u32,
+    /// Element offsets of this level in the shared buffers.
+    pub et_base: u32,
+    pub off_base: u32,
+    pub proj_base: u32,
+    pub coord_base: u32,
+    pub parent_coord_base: u32,
+    /// Output window inside this level's region (gather pass).
+    pub window_offset: [i32; 2],
+    pub window_size: [i32; 2],
+    pub _pad: [u32; 2],
+}
+
+/// Dynamic uniform offsets must be multiples of this (the WebGPU default limit).
+pub const PARAMS_STRIDE: u64 = 256;
+
+/// Integer hash with good avalanche ("lowbias32", C. Wellons). Same in WGSL.
+#[inline]
+pub fn hash32(mut x: u32) -> u32 {
+    x ^= x >> 16;
+    x = x.wrapping_mul(0x7feb_352d);
+    x ^= x >> 15;
+    x = x.wrapping_mul(0x846c_a68b);
+    x ^= x >> 16;
+    x
+}
+
+/// `H(p, l, seed)`: two independent 32-bit hashes of an absolute pixel position, the
+/// level and the seed. Absolute positions make every window of the infinite texture agree.
+#[inline]
+pub fn hash_pixel(p: [i32; 2], level: u32, seed: u32) -> [u32; 2] {
+    let h = hash32(seed ^ hash32(level.wrapping_add(0x9e37_79b9)));
+    let h = hash32(h ^ p[0] as u32);
+    let hx = hash32(h ^ (p[1] as u32).wrapping_mul(0x2c1b_3c6d));
+    let hy = hash32(hx ^ 0x68e3_1da4);
+    [hx, hy]
+}
+
+#[inline]
+pub fn wrap(c: i32, n: i32) -> i32 {
+    ((c % n) + n) % n
+}
+
+/// A coordinate after upsampling or jittering: wrapped (tileable) or clamped into the
+/// valid region (non-tileable).
+#[inline]
+pub fn fit_coord(c: [i32; 2], p: &PassParams) -> [i32; 2] {
+    if p.tileable != 0 {
+        [wrap(c[0], p.ex_size[0]), wrap(c[1], p.ex_size[1])]
+    } else {
+        [
+            c[0].clamp(p.margin, p.ex_size[0] - 1 - p.margin),
+            c[1].clamp(p.margin, p.ex_size[1] - 1 - p.margin),
+        ]
+    }
+}
+
+/// An exemplar read position: wrapped (tileable) or clamped to the image (non-tileable).
+#[inline]
+pub fn read_coord(c: [i32; 2], p: &PassParams) -> [i32; 2] {
+    if p.tileable != 0 {
+        [wrap(c[0], p.ex_size[0]), wrap(c[1], p.ex_size[1])]
+    } else {
+        [c[0].clamp(0, p.ex_size[0] - 1), c[1].clamp(0, p.ex_size[1] - 1)]
+    }
+}
+
+/// Whether a candidate coordinate may be chosen (always for tileable exemplars).
+#[inline]
+pub fn is_valid(c: [i32; 2], p: &PassParams) -> bool {
+    p.tileable != 0
+        || (c[0] >= p.margin
+            && c[0] <= p.ex_size[0] - 1 - p.margin
+            && c[1] >= p.margin
+            && c[1] <= p.ex_size[1] - 1 - p.margin)
+}
+
+/// Index of region pixel `q` (clamped into the region) in the level's coordinate array.
+#[inline]
+pub fn region_index(q: [i32; 2], p: &PassParams) -> usize {
+    let x = q[0].clamp(0, p.size[0] - 1);
+    let y = q[1].clamp(0, p.size[1] - 1);
+    (y * p.size[0] + x) as usize
+}

@@ -1,0 +1,203 @@
+//! The synthesis plan: which region of the infinite synthesis pyramid each level
+//! computes, and the per-dispatch parameters. GPU and CPU both execute this plan.
+//!
+//! The output is a window of an unbounded texture: level `l` computes an absolute region
+//! that covers everything the finer level reads, plus a margin of `4 * passes` pixels.
+//! A correction pass of 4 subpasses propagates information at most 4 pixels, so pixels
+//! that far from the region edge never see the clamped reads at the edge: the result is
+//! independent of the window, and overlapping windows agree.
+
+use super::common::PassParams;
+use crate::analysis::Analysis;
+use crate::error::{Error, Result};
+
+/// User-facing synthesis parameters.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SynthParams {
+    /// Output size in pixels.
+    pub width: u32,
+    pub height: u32,
+    /// Absolute position of the output window in the infinite texture.
+    pub origin: [i32; 2],
+    pub seed: u32,
+    /// Per-level jitter randomness `r_l` (fraction of `h_l`), index = level. Missing
+    /// levels use the last value; an empty list uses [`default_randomness`].
+    pub randomness: Vec<f32>,
+    /// Correction passes per level (each = 4 subpasses).
+    pub passes: u32,
+    /// Bias towards coherent candidates (0 = none, 1 = distance doubled for others).
+    pub coherence: f32,
+}
+
+impl Default for SynthParams {
+    fn default() -> Self {
+        Self {
+            width: 256,
+            height: 256,
+            origin: [0, 0],
+            seed: 1,
+            randomness: Vec::new(),
+            passes: 2,
+            coherence: 0.0,
+        }
+    }
+}
+
+/// Default per-level randomness: strong at the coarse levels (new arrangement of
+/// features), none at the finest (keep exemplar detail intact).
+pub fn default_randomness(level: u32, levels: u32) -> f32 {
+    let from_finest = levels.saturating_sub(level);
+    match from_finest {
+        0 => 0.0,
+        1 => 0.25,
+        _ => 0.5,
+    }
+}
+
+/// One level of the plan.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LevelPlan {
+    pub level: u32,
+    pub spacing: u32,
+    /// Absolute origin and size of the region computed at this level.
+    pub origin: [i32; 2],
+    pub size: [u32; 2],
+    /// Offset of this level's coordinates in the concatenated coordinate array.
+    pub coord_base: u32,
+    pub randomness: f32,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct SynthPlan {
+    pub levels: Vec<LevelPlan>,
+    pub params: SynthParams,
+    /// Where the output window lies in the finest level's region.
+    pub window_offset: [u32; 2],
+    /// Total coordinates over all levels.
+    pub coord_count: u64,
+}
+
+fn floor_div2(x: i32) -> i32 {
+    x >> 1
+}
+
+impl SynthPlan {
+    pub fn new(analysis: &Analysis, params: &SynthParams) -> Result<Self> {
+        if params.width == 0 || params.height == 0 {
+            return Err(Error::InvalidParameter(format!(
+                "output size {}x{}: width and height must be at least 1",
+                params.width, params.height
+            )));
+        }
+        if params.passes > 16 {
+            return Err(Error::InvalidParameter(format!(
+                "{} correction passes: at most 16 are supported",
+                params.passes
+            )));
+        }
+        if !params.coherence.is_finite() || !(0.0..=4.0).contains(&params.coherence) {
+            return Err(Error::InvalidParameter(format!(
+                "coherence {} must be between 0 and 4",
+                params.coherence
+            )));
+        }
+        for &r in &params.randomness {
+            if !r.is_finite() || !(0.0..=2.0).contains(&r) {
+                return Err(Error::InvalidParameter(format!(
+                    "randomness {r} must be between 0 and 2"
+                )));
+            }
+        }
+        let n_levels = analysis.levels.len() as u32;
+        let last = n_levels - 1;
+        let margin = 4 * params.passes as i32;
+        // Walk from the finest level to the coarsest: `need` is the half-open absolute
+        // region whose values must be exact; the computed region adds the margin.
+        let (mut lo, mut hi) = (
+            params.origin,
+            [
+                params.origin[0] + params.width as i32,
+                params.origin[1] + params.height as i32,
+            ],
+        );
+        let mut rev = Vec::with_capacity(n_levels as usize);
+        for level in (0..n_levels).rev() {
+            let (rlo, rhi) = if level == 0 {
+                (lo, hi)
+            } else {
+                ([lo[0] - margin, lo[1] - margin], [hi[0] + margin, hi[1] + margin])
+            };
+            rev.push((level, rlo, rhi));
+            lo = [floor_div2(rlo[0]), floor_div2(rlo[1])];
+            hi = [floor_div2(rhi[0] - 1) + 1, floor_div2(rhi[1] - 1) + 1];
+        }
+        rev.reverse();
+        let mut levels = Vec::with_capacity(rev.len());
+        let mut base: u64 = 0;
+        for (level, rlo, rhi) in rev {
+            let size = [(rhi[0] - rlo[0]) as u32, (rhi[1] - rlo[1]) as u32];
+            let randomness = if params.randomness.is_empty() {
+                default_randomness(level, last)
+            } else {
+                let i = (level as usize).min(params.randomness.len() - 1);
+                params.randomness[i]
+            };
+            levels.push(LevelPlan {
+                level,
+                spacing: analysis.levels[level as usize].spacing,
+                origin: rlo,
+                size,
+                coord_base: base as u32,
+                randomness,
+            });
+            base += size[0] as u64 * size[1] as u64;
+        }
+        if base > u32::MAX as u64 / 2 {
+            return Err(Error::InvalidParameter(format!(
+                "output {}x{} is too large for one synthesis; synthesize it in windows",
+                params.width, params.height
+            )));
+        }
+        let fin = levels.last().unwrap();
+        let window_offset = [
+            (params.origin[0] - fin.origin[0]) as u32,
+            (params.origin[1] - fin.origin[1]) as u32,
+        ];
+        Ok(Self { levels, params: params.clone(), window_offset, coord_count: base })
+    }
+
+    /// Uniform parameters of any pass at `level` (parity and correction-specific
+    /// fields are filled by the caller).
+    pub fn pass_params(&self, analysis: &Analysis, level: usize) -> PassParams {
+        let lp = &self.levels[level];
+        let ld = &analysis.levels[level];
+        let parent = if level > 0 { &self.levels[level - 1] } else { lp };
+        let px = (analysis.width * analysis.height) as u32;
+        let km1 = analysis.k.saturating_sub(1);
+        PassParams {
+            ex_size: [analysis.width as i32, analysis.height as i32],
+            origin: lp.origin,
+            size: [lp.size[0] as i32, lp.size[1] as i32],
+            parent_origin: parent.origin,
+            parent_size: [parent.size[0] as i32, parent.size[1] as i32],
+            parity: [0, 0],
+            spacing: lp.spacing as i32,
+            tileable: analysis.tileable as i32,
+            margin: ld.margin as i32,
+            level: lp.level,
+            seed: self.params.seed,
+            jitter_amp: (lp.spacing as f32 * lp.randomness * 16.0).round() as i32,
+            k: analysis.k as i32,
+            shift: ld.shift,
+            coherence: (self.params.coherence * 16.0).round() as u32,
+            et_base: level as u32 * px,
+            off_base: level as u32 * px * km1,
+            proj_base: level as u32 * 64,
+            coord_base: lp.coord_base,
+            parent_coord_base: parent.coord_base,
+            window_offset: [self.window_offset[0] as i32, self.window_offset[1] as i32],
+            window_size: [self.params.width as i32, self.params.height as i32],
+            _pad: [0, 0],
+        }
+    }
+}
