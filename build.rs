@@ -1,1 +1,409 @@
-fn main(){}
+//! Build script: preprocess (`#include`), parse and validate every pass shader
+//! `shaders/*.wgsl` with naga, and generate `$OUT_DIR/shaders.rs` (one
+//! `ShaderSource` constant per pass plus `ALL`), which `src/gpu/shaders.rs` includes.
+//!
+//! A WGSL error fails the build with `shaders/<file>:<line>:<col>: error: ...`, located in
+//! the original file (an included one where that is where the error is).
+
+#[path = "src/shader_preprocess.rs"]
+mod shader_preprocess;
+
+use std::collections::BTreeSet;
+use std::fmt::Write as _;
+use std::fs;
+use std::path::{Path, PathBuf};
+
+use shader_preprocess::{preprocess, Preprocessed};
+
+/// The shader directory, relative to the crate root; also the prefix of reported paths.
+const SHADER_DIR: &str = "shaders";
+
+fn main() {
+    let manifest_dir =
+        PathBuf::from(std::env::var_os("CARGO_MANIFEST_DIR").expect("CARGO_MANIFEST_DIR"));
+    let out_dir = PathBuf::from(std::env::var_os("OUT_DIR").expect("OUT_DIR"));
+    println!("cargo:rerun-if-changed=build.rs");
+    println!("cargo:rerun-if-changed=src/shader_preprocess.rs");
+    println!("cargo:rerun-if-changed={SHADER_DIR}");
+
+    let shader_dir = manifest_dir.join(SHADER_DIR);
+    let result = build_shaders(&shader_dir, SHADER_DIR, &out_dir.join("shaders"));
+    for file in &result.read {
+        println!("cargo:rerun-if-changed={SHADER_DIR}/{file}");
+    }
+    if !result.errors.is_empty() {
+        let report = result.errors.join("\n");
+        for line in report.lines() {
+            println!("cargo:warning={line}");
+        }
+        panic!(
+            "{} shader error(s) in {SHADER_DIR}/:\n{report}",
+            result.errors.len()
+        );
+    }
+    let generated = out_dir.join("shaders.rs");
+    fs::write(&generated, result.code)
+        .unwrap_or_else(|e| panic!("cannot write {}: {e}", generated.display()));
+}
+
+/// What [`build_shaders`] produced.
+struct BuildResult {
+    /// The generated Rust (meaningful only when `errors` is empty).
+    code: String,
+    /// Every file read, relative to the shader directory (for rerun-if-changed).
+    read: BTreeSet<String>,
+    /// One formatted diagnostic (possibly several lines) per error.
+    errors: Vec<String>,
+}
+
+/// A validated pass shader.
+struct Pass {
+    const_name: String,
+    name: String,
+    file: String,
+    source: String,
+    entry_point: String,
+    workgroup_size: [u32; 3],
+}
+
+/// Preprocess and validate every `*.wgsl` directly in `shader_dir`; write each preprocessed
+/// shader to `preprocessed_dir` and return the generated code. `display_dir` prefixes
+/// file names in diagnostics and in `ShaderSource::file`.
+fn build_shaders(shader_dir: &Path, display_dir: &str, preprocessed_dir: &Path) -> BuildResult {
+    let mut result = BuildResult {
+        code: String::new(),
+        read: BTreeSet::new(),
+        errors: Vec::new(),
+    };
+    let mut roots = Vec::new();
+    match fs::read_dir(shader_dir) {
+        Ok(entries) => {
+            for entry in entries.flatten() {
+                let path = entry.path();
+                let is_file =
+                    entry.file_type().map(|t| t.is_file()).unwrap_or(false) || path.is_file();
+                if is_file && path.extension().is_some_and(|e| e == "wgsl") {
+                    match path.file_name().and_then(|n| n.to_str()) {
+                        Some(name) => roots.push(name.to_string()),
+                        None => result.errors.push(format!(
+                            "{}: error: shader file names must be UTF-8",
+                            path.display()
+                        )),
+                    }
+                }
+            }
+        }
+        // No shader directory: nothing to embed, `ALL` is empty.
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+        Err(e) => result.errors.push(format!(
+            "{}: error: cannot list shaders: {e}",
+            shader_dir.display()
+        )),
+    }
+    roots.sort();
+
+    let mut passes: Vec<Pass> = Vec::new();
+    for root in &roots {
+        let display = |file: &str| format!("{display_dir}/{file}");
+        let pre = preprocess(root, |path| {
+            result.read.insert(path.to_string());
+            fs::read_to_string(shader_dir.join(path)).map_err(|e| e.to_string())
+        });
+        let pre = match pre {
+            Ok(pre) => pre,
+            Err(e) => {
+                let location = match e.line {
+                    Some(line) => format!("{}:{line}:1", display(&e.file)),
+                    None => display(&e.file),
+                };
+                result
+                    .errors
+                    .push(format!("{location}: error: {}", e.message));
+                continue;
+            }
+        };
+        match validate(root, &pre, display_dir) {
+            Ok((entry_point, workgroup_size)) => {
+                let name = root.trim_end_matches(".wgsl").to_string();
+                passes.push(Pass {
+                    const_name: const_name(&name),
+                    file: display(root),
+                    name,
+                    source: pre.text,
+                    entry_point,
+                    workgroup_size,
+                });
+            }
+            Err(e) => result.errors.push(e),
+        }
+    }
+
+    for (i, pass) in passes.iter().enumerate() {
+        let clash = passes[..i].iter().find(|p| p.const_name == pass.const_name);
+        if let Some(other) = clash {
+            result.errors.push(format!(
+                "{}: error: constant name {} is also used by {}; rename one of the files",
+                pass.file, pass.const_name, other.file
+            ));
+        } else if pass.const_name == "ALL" {
+            result.errors.push(format!(
+                "{}: error: a shader may not be called `all` (clashes with `ALL`)",
+                pass.file
+            ));
+        }
+    }
+    if !result.errors.is_empty() {
+        return result;
+    }
+
+    if !passes.is_empty() {
+        if let Err(e) = fs::create_dir_all(preprocessed_dir) {
+            result.errors.push(format!(
+                "{}: error: cannot create: {e}",
+                preprocessed_dir.display()
+            ));
+            return result;
+        }
+    }
+    let code = &mut result.code;
+    code.push_str("// @generated by build.rs from shaders/*.wgsl. Do not edit.\n\n");
+    for pass in &passes {
+        let preprocessed = preprocessed_dir.join(format!("{}.wgsl", pass.name));
+        if let Err(e) = fs::write(&preprocessed, &pass.source) {
+            result.errors.push(format!(
+                "{}: error: cannot write {}: {e}",
+                pass.file,
+                preprocessed.display()
+            ));
+            continue;
+        }
+        let preprocessed = preprocessed.to_str().map(str::to_string);
+        let source = match &preprocessed {
+            // Embed the written copy so the generated file stays small and readable.
+            Some(path) if !path.contains('"') => format!("include_str!({path:?})"),
+            _ => format!("{:?}", pass.source),
+        };
+        let [x, y, z] = pass.workgroup_size;
+        let _ = write!(
+            code,
+            "/// `{file}` (preprocessed), entry point `{entry}`, workgroup size {x}x{y}x{z}.\n\
+             pub const {cname}: ShaderSource = ShaderSource {{\n    \
+             name: {name:?},\n    \
+             file: {file:?},\n    \
+             source: {source},\n    \
+             entry_point: {entry:?},\n    \
+             workgroup_size: [{x}, {y}, {z}],\n\
+             }};\n\n",
+            file = pass.file,
+            entry = pass.entry_point,
+            cname = pass.const_name,
+            name = pass.name,
+        );
+    }
+    let all: Vec<&str> = passes.iter().map(|p| p.const_name.as_str()).collect();
+    let _ = writeln!(
+        code,
+        "/// Every pass shader, sorted by file name.\npub const ALL: &[ShaderSource] = &[{}];",
+        all.join(", ")
+    );
+    result
+}
+
+/// `upsample` -> `UPSAMPLE`, `my-pass` -> `MY_PASS`, `2x` -> `_2X`.
+fn const_name(stem: &str) -> String {
+    let mut name: String = stem
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() {
+                c.to_ascii_uppercase()
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    if name.is_empty() || name.starts_with(|c: char| c.is_ascii_digit()) {
+        name.insert(0, '_');
+    }
+    name
+}
+
+/// Parse and validate a preprocessed shader; return its compute entry point's name and
+/// workgroup size, or a formatted diagnostic located in the original files.
+fn validate(
+    root: &str,
+    pre: &Preprocessed,
+    display_dir: &str,
+) -> Result<(String, [u32; 3]), String> {
+    let source = pre.text.as_str();
+    let module = naga::front::wgsl::parse_str(source).map_err(|e| {
+        let labels: Vec<(naga::Span, String)> = e
+            .labels()
+            .map(|(span, label)| (span, label.to_string()))
+            .collect();
+        let notes: Vec<String> = e.notes().map(str::to_string).collect();
+        diagnostic(root, pre, display_dir, e.message(), &labels, &notes)
+    })?;
+
+    let mut validator = naga::valid::Validator::new(
+        naga::valid::ValidationFlags::all(),
+        // What wgpu grants a device created without optional features.
+        naga::valid::Capabilities::default(),
+    );
+    validator.validate(&module).map_err(|e| {
+        let mut message = e.as_inner().to_string();
+        let mut cause: Option<&dyn std::error::Error> = std::error::Error::source(e.as_inner());
+        while let Some(c) = cause {
+            let _ = write!(message, ": {c}");
+            cause = c.source();
+        }
+        let mut labels: Vec<(naga::Span, String)> = e.spans().cloned().collect();
+        if labels.is_empty() {
+            // naga keeps no span for entry points: point at `fn <name>` instead.
+            let function = match e.as_inner() {
+                naga::valid::ValidationError::EntryPoint { name, .. }
+                | naga::valid::ValidationError::Function { name, .. } => Some(name.as_str()),
+                _ => None,
+            };
+            if let Some(span) = function.and_then(|name| find_fn(source, name)) {
+                labels.push((span, "in this function".to_string()));
+            }
+        }
+        diagnostic(root, pre, display_dir, &message, &labels, &[])
+    })?;
+
+    let computes: Vec<&naga::EntryPoint> = module
+        .entry_points
+        .iter()
+        .filter(|ep| ep.stage == naga::ShaderStage::Compute)
+        .collect();
+    let at_root = |message: String| format!("{display_dir}/{root}: error: {message}");
+    match computes.as_slice() {
+        [] => Err(at_root(
+            "no @compute entry point; every shaders/*.wgsl is a compute pass \
+             (put shared code in shaders/shared/ and #include it)"
+                .to_string(),
+        )),
+        [ep] if ep.workgroup_size_overrides.is_some() => Err(at_root(format!(
+            "the @workgroup_size of entry point `{}` uses pipeline overrides; \
+             use literals or `const`s so the host knows the dispatch size",
+            ep.name
+        ))),
+        [ep] => Ok((ep.name.clone(), ep.workgroup_size)),
+        many => Err(at_root(format!(
+            "{} @compute entry points ({}); a pass shader must have exactly one",
+            many.len(),
+            many.iter()
+                .map(|ep| ep.name.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        ))),
+    }
+}
+
+/// The span of the name in the first `fn <name>` of `source`.
+fn find_fn(source: &str, name: &str) -> Option<naga::Span> {
+    let is_ident = |c: char| c.is_alphanumeric() || c == '_';
+    let mut from = 0;
+    while let Some(found) = source[from..].find(name) {
+        let start = from + found;
+        let end = start + name.len();
+        from = end;
+        let before = source[..start].trim_end_matches([' ', '\t', '\r', '\n']);
+        let after_ok = !source[end..].starts_with(is_ident);
+        let fn_ok = before.ends_with("fn")
+            && !before[..before.len() - 2].ends_with(is_ident)
+            && before.len() < start;
+        if after_ok && fn_ok {
+            return Some(naga::Span::from(start..end));
+        }
+    }
+    None
+}
+
+/// Format an error at its labelled spans, mapped to the original files:
+///
+/// ```text
+/// shaders/shared/common.wgsl:42:7: error: <message>
+///    42 |     let y = x x;
+///       |           ^^^ <label>
+/// shaders/upsample.wgsl:10:3: note: <secondary label>
+///   = note: <note>
+/// ```
+fn diagnostic(
+    root: &str,
+    pre: &Preprocessed,
+    display_dir: &str,
+    message: &str,
+    labels: &[(naga::Span, String)],
+    notes: &[String],
+) -> String {
+    let source = pre.text.as_str();
+    let mut out = String::new();
+    let mut located = labels.iter().filter(|(span, _)| span.is_defined());
+    match located.next() {
+        Some((span, label)) => {
+            let _ = writeln!(out, "{}: error: {message}", locate(pre, display_dir, *span));
+            excerpt(&mut out, source, *span, label);
+        }
+        None => {
+            let _ = writeln!(out, "{display_dir}/{root}: error: {message}");
+        }
+    }
+    for (span, label) in located {
+        let _ = writeln!(out, "{}: note: {label}", locate(pre, display_dir, *span));
+        excerpt(&mut out, source, *span, "");
+    }
+    for note in notes {
+        let _ = writeln!(out, "  = note: {note}");
+    }
+    out.trim_end().to_string()
+}
+
+/// `shaders/<file>:<line>:<col>` of a span of the preprocessed text.
+fn locate(pre: &Preprocessed, display_dir: &str, span: naga::Span) -> String {
+    let source = pre.text.as_str();
+    let offset = clamp_offset(source, span.to_range().map_or(0, |r| r.start));
+    let line = source[..offset].matches('\n').count() + 1;
+    let line_start = source[..offset].rfind('\n').map_or(0, |i| i + 1);
+    let column = source[line_start..offset].chars().count() + 1;
+    match pre.origin(u32::try_from(line).unwrap_or(u32::MAX)) {
+        Some((file, line)) => format!("{display_dir}/{file}:{line}:{column}"),
+        None => format!("{display_dir}/{}", pre.files[0]),
+    }
+}
+
+/// `offset` within `source`; an offset at the very end (an "unexpected end of input")
+/// moves back onto the last line.
+fn clamp_offset(source: &str, offset: usize) -> usize {
+    let mut offset = offset.min(source.len());
+    if offset == source.len() && source.ends_with('\n') {
+        offset -= 1;
+    }
+    while !source.is_char_boundary(offset) {
+        offset -= 1;
+    }
+    offset
+}
+
+/// The source line holding `span`, with the span underlined and labelled.
+fn excerpt(out: &mut String, source: &str, span: naga::Span, label: &str) {
+    let Some(range) = span.to_range() else { return };
+    let start = clamp_offset(source, range.start);
+    let line_start = source[..start].rfind('\n').map_or(0, |i| i + 1);
+    let line_end = source[start..]
+        .find('\n')
+        .map_or(source.len(), |i| start + i);
+    let line = &source[line_start..line_end];
+    let pad = source[line_start..start].chars().count();
+    let width = source[start..range.end.min(line_end).max(start)]
+        .chars()
+        .count()
+        .max(1);
+    let _ = writeln!(out, "    | {line}");
+    let _ = writeln!(
+        out,
+        "    | {}{} {label}",
+        " ".repeat(pad),
+        "^".repeat(width)
+    );
+}

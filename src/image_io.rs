@@ -1,0 +1,510 @@
+//! Files: loading exemplars, writing output images and coordinate maps, and the atomic
+//! writer everything that texsyn writes goes through.
+//!
+//! * [`load_exemplar`] / [`exemplar_from_image`]: any format the `image` crate reads
+//!   (PNG, JPEG, BMP, TGA, TIFF, WebP, GIF, PNM, HDR, OpenEXR), chosen by the file's
+//!   content (the extension is only a fallback, e.g. for TGA, which has no signature).
+//!   8-bit, 16-bit and float samples; grey, grey+alpha, RGB and RGBA. **Alpha is ignored**:
+//!   grey and grey+alpha exemplars have 1 channel, everything else 3.
+//! * [`write_atomic`]: write to a temporary file next to the target, fsync, rename over
+//!   the target. A failed or interrupted write never leaves a partial file at the target.
+//! * [`save_image_atomic`]: RGBA8 pixels to grey / RGB / RGBA in the format named by the
+//!   extension.
+//! * [`save_coords_exr_atomic`] / [`load_coords_exr`]: the synthesized exemplar
+//!   coordinates as a 32-bit float OpenEXR (R = x, G = y, B = 0).
+
+use std::ffi::OsString;
+use std::fs::{self, File, OpenOptions};
+use std::io::{BufWriter, Cursor, Write};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use image::{DynamicImage, ImageFormat};
+
+use crate::analysis::{check_exemplar_size, Exemplar};
+use crate::error::{Error, Result};
+
+// ---------------------------------------------------------------------------------------
+// Loading exemplars
+// ---------------------------------------------------------------------------------------
+
+/// Loads an exemplar from any image file the `image` crate can decode. The format is
+/// detected from the file's content (falling back on the extension).
+///
+/// * `channels` is 1 for grey and grey+alpha images, 3 otherwise (alpha is ignored).
+/// * `values` keep the full source precision (16-bit samples are divided by 65535, not
+///   first reduced to 8 bits); float samples (HDR, EXR) are clamped to [0, 1] (NaN -> 0).
+/// * `colors` are RGBA8 with grey replicated into RGB and alpha always 255.
+///
+/// Errors: a missing or unreadable file is [`Error::Io`]; an empty, non-image, truncated
+/// or corrupt file is [`Error::BadImage`] with the decoder's reason; an image smaller than
+/// [`crate::analysis::MIN_EXEMPLAR_SIZE`] on either side is [`Error::ExemplarTooSmall`].
+pub fn load_exemplar(path: &Path) -> Result<Exemplar> {
+    let img = decode_image(path)?;
+    exemplar_from_image(&img)
+}
+
+/// Builds an [`Exemplar`] from an already decoded image (see [`load_exemplar`] for the
+/// conversion rules). Fails with [`Error::ExemplarTooSmall`] for images below the minimum
+/// size.
+pub fn exemplar_from_image(img: &DynamicImage) -> Result<Exemplar> {
+    let (width, height) = (img.width(), img.height());
+    check_exemplar_size(width, height)?;
+    let n = width as usize * height as usize;
+
+    let mut values: Vec<f32>;
+    let mut colors: Vec<[u8; 4]> = Vec::with_capacity(n);
+    let channels: u32;
+
+    match img {
+        DynamicImage::ImageLuma8(b) => {
+            channels = 1;
+            values = Vec::with_capacity(n);
+            for p in b.pixels() {
+                values.push(p.0[0] as f32 / 255.0);
+                colors.push(grey8(p.0[0]));
+            }
+        }
+        DynamicImage::ImageLumaA8(b) => {
+            channels = 1;
+            values = Vec::with_capacity(n);
+            for p in b.pixels() {
+                values.push(p.0[0] as f32 / 255.0);
+                colors.push(grey8(p.0[0]));
+            }
+        }
+        DynamicImage::ImageLuma16(b) => {
+            channels = 1;
+            values = Vec::with_capacity(n);
+            for p in b.pixels() {
+                values.push(p.0[0] as f32 / 65535.0);
+                colors.push(grey8(u16_to_u8(p.0[0])));
+            }
+        }
+        DynamicImage::ImageLumaA16(b) => {
+            channels = 1;
+            values = Vec::with_capacity(n);
+            for p in b.pixels() {
+                values.push(p.0[0] as f32 / 65535.0);
+                colors.push(grey8(u16_to_u8(p.0[0])));
+            }
+        }
+        DynamicImage::ImageRgb8(b) => {
+            channels = 3;
+            values = Vec::with_capacity(3 * n);
+            for p in b.pixels() {
+                push_rgb8(&mut values, &mut colors, [p.0[0], p.0[1], p.0[2]]);
+            }
+        }
+        DynamicImage::ImageRgba8(b) => {
+            channels = 3;
+            values = Vec::with_capacity(3 * n);
+            for p in b.pixels() {
+                push_rgb8(&mut values, &mut colors, [p.0[0], p.0[1], p.0[2]]);
+            }
+        }
+        DynamicImage::ImageRgb16(b) => {
+            channels = 3;
+            values = Vec::with_capacity(3 * n);
+            for p in b.pixels() {
+                push_rgb16(&mut values, &mut colors, [p.0[0], p.0[1], p.0[2]]);
+            }
+        }
+        DynamicImage::ImageRgba16(b) => {
+            channels = 3;
+            values = Vec::with_capacity(3 * n);
+            for p in b.pixels() {
+                push_rgb16(&mut values, &mut colors, [p.0[0], p.0[1], p.0[2]]);
+            }
+        }
+        DynamicImage::ImageRgb32F(b) => {
+            channels = 3;
+            values = Vec::with_capacity(3 * n);
+            for p in b.pixels() {
+                push_rgbf(&mut values, &mut colors, [p.0[0], p.0[1], p.0[2]]);
+            }
+        }
+        DynamicImage::ImageRgba32F(b) => {
+            channels = 3;
+            values = Vec::with_capacity(3 * n);
+            for p in b.pixels() {
+                push_rgbf(&mut values, &mut colors, [p.0[0], p.0[1], p.0[2]]);
+            }
+        }
+        // `DynamicImage` is non-exhaustive: anything new goes through float RGB.
+        other => {
+            channels = 3;
+            values = Vec::with_capacity(3 * n);
+            let b = other.to_rgb32f();
+            for p in b.pixels() {
+                push_rgbf(&mut values, &mut colors, [p.0[0], p.0[1], p.0[2]]);
+            }
+        }
+    }
+
+    Ok(Exemplar {
+        width,
+        height,
+        channels,
+        values,
+        colors,
+    })
+}
+
+fn grey8(v: u8) -> [u8; 4] {
+    [v, v, v, 255]
+}
+
+/// 16-bit to 8-bit with rounding (exact for values that came from 8 bits: v * 257).
+fn u16_to_u8(v: u16) -> u8 {
+    ((v as u32 * 255 + 32767) / 65535) as u8
+}
+
+fn f32_to_unit(v: f32) -> f32 {
+    // NaN fails both comparisons of `clamp`'s contract, so handle it first.
+    if v.is_nan() {
+        0.0
+    } else {
+        v.clamp(0.0, 1.0)
+    }
+}
+
+fn push_rgb8(values: &mut Vec<f32>, colors: &mut Vec<[u8; 4]>, c: [u8; 3]) {
+    values.extend(c.iter().map(|&v| v as f32 / 255.0));
+    colors.push([c[0], c[1], c[2], 255]);
+}
+
+fn push_rgb16(values: &mut Vec<f32>, colors: &mut Vec<[u8; 4]>, c: [u16; 3]) {
+    values.extend(c.iter().map(|&v| v as f32 / 65535.0));
+    colors.push([u16_to_u8(c[0]), u16_to_u8(c[1]), u16_to_u8(c[2]), 255]);
+}
+
+fn push_rgbf(values: &mut Vec<f32>, colors: &mut Vec<[u8; 4]>, c: [f32; 3]) {
+    let c = c.map(f32_to_unit);
+    values.extend_from_slice(&c);
+    let q = c.map(|v| (v * 255.0).round() as u8);
+    colors.push([q[0], q[1], q[2], 255]);
+}
+
+/// Opens and decodes an image, deciding the format by content. Missing / unreadable
+/// file: `Error::Io`; anything the decoder rejects: `Error::BadImage`.
+fn decode_image(path: &Path) -> Result<DynamicImage> {
+    let io_err = |source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    if path.is_dir() {
+        return Err(Error::BadImage {
+            path: path.to_path_buf(),
+            reason: "it is a directory, not an image file".into(),
+        });
+    }
+    let reader = image::ImageReader::open(path).map_err(io_err)?;
+    let reader = reader.with_guessed_format().map_err(io_err)?;
+    let len = fs::metadata(path).map(|m| m.len()).ok();
+    if len == Some(0) {
+        return Err(Error::BadImage {
+            path: path.to_path_buf(),
+            reason: "the file is empty".into(),
+        });
+    }
+    if reader.format().is_none() {
+        return Err(Error::BadImage {
+            path: path.to_path_buf(),
+            reason: "unrecognized image format (neither the content nor the extension names \
+                     a supported format)"
+                .into(),
+        });
+    }
+    reader.decode().map_err(|e| Error::BadImage {
+        path: path.to_path_buf(),
+        reason: e.to_string(),
+    })
+}
+
+// ---------------------------------------------------------------------------------------
+// Atomic writes
+// ---------------------------------------------------------------------------------------
+
+static TEMP_COUNTER: AtomicU64 = AtomicU64::new(0);
+
+/// Removes the temporary file on drop unless disarmed (covers errors and panics in the
+/// caller's closure).
+struct TempGuard {
+    path: PathBuf,
+    armed: bool,
+}
+
+impl Drop for TempGuard {
+    fn drop(&mut self) {
+        if self.armed {
+            let _ = fs::remove_file(&self.path);
+        }
+    }
+}
+
+/// Writes a file atomically: `write` fills a temporary file `.{filename}.{pid}.{n}.tmp` in
+/// the target's directory, which is then flushed, fsynced and renamed over `path` (and
+/// the directory is fsynced, best effort). On any error, or if `write` panics, the
+/// temporary file is removed and `path` is left untouched: it never holds a partial file.
+///
+/// All failures are [`Error::Write`] naming `path` (an error returned by `write` that is
+/// already an `Error::Write` is passed through unchanged; other errors are wrapped).
+/// Renaming replaces a symlink at `path` rather than the file it points to, and the new
+/// file gets default permissions.
+pub fn write_atomic(
+    path: &Path,
+    write: impl FnOnce(&mut BufWriter<File>) -> Result<()>,
+) -> Result<()> {
+    let werr = |reason: String| Error::Write {
+        path: path.to_path_buf(),
+        reason,
+    };
+
+    let Some(file_name) = path.file_name() else {
+        return Err(werr("the path does not name a file".into()));
+    };
+    if path.is_dir() {
+        return Err(werr("it is a directory; give a file name".into()));
+    }
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    if !dir.is_dir() {
+        return Err(werr(if dir.exists() {
+            format!("{} is not a directory", dir.display())
+        } else {
+            format!(
+                "directory {} does not exist; create it first",
+                dir.display()
+            )
+        }));
+    }
+
+    let mut tmp_name = OsString::from(".");
+    tmp_name.push(file_name);
+    tmp_name.push(format!(
+        ".{}.{}.tmp",
+        std::process::id(),
+        TEMP_COUNTER.fetch_add(1, Ordering::Relaxed)
+    ));
+    let tmp_path = dir.join(tmp_name);
+
+    let file = OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(&tmp_path)
+        .map_err(|e| {
+            werr(format!(
+                "cannot create a temporary file in {}: {e}",
+                dir.display()
+            ))
+        })?;
+    let mut guard = TempGuard {
+        path: tmp_path,
+        armed: true,
+    };
+
+    let mut w = BufWriter::new(file);
+    write(&mut w).map_err(|e| match e {
+        Error::Write { .. } => e,
+        other => werr(other.to_string()),
+    })?;
+    let file = w.into_inner().map_err(|e| werr(e.error().to_string()))?;
+    file.sync_all()
+        .map_err(|e| werr(format!("fsync failed: {e}")))?;
+    drop(file);
+
+    fs::rename(&guard.path, path)
+        .map_err(|e| werr(format!("cannot rename the temporary file: {e}")))?;
+    guard.armed = false;
+
+    // Make the rename durable; not all platforms / file systems allow this.
+    if let Ok(d) = File::open(&dir) {
+        let _ = d.sync_all();
+    }
+    Ok(())
+}
+
+// ---------------------------------------------------------------------------------------
+// Saving images
+// ---------------------------------------------------------------------------------------
+
+/// Extensions accepted by [`save_image_atomic`], for error messages.
+pub const SUPPORTED_SAVE_EXTENSIONS: &str =
+    "png, jpg/jpeg, bmp, tga, tif/tiff, webp, gif, pnm/ppm/pgm/pam, exr, hdr";
+
+fn save_format(path: &Path) -> Result<ImageFormat> {
+    let Some(ext) = path.extension() else {
+        return Ok(ImageFormat::Png);
+    };
+    let fmt = ImageFormat::from_extension(ext).filter(|f| {
+        matches!(
+            f,
+            ImageFormat::Png
+                | ImageFormat::Jpeg
+                | ImageFormat::Bmp
+                | ImageFormat::Tga
+                | ImageFormat::Tiff
+                | ImageFormat::WebP
+                | ImageFormat::Gif
+                | ImageFormat::Pnm
+                | ImageFormat::OpenExr
+                | ImageFormat::Hdr
+        )
+    });
+    fmt.ok_or_else(|| {
+        Error::InvalidParameter(format!(
+            "cannot write {}: unsupported image extension .{}; supported: {} (no extension: png)",
+            path.display(),
+            ext.to_string_lossy(),
+            SUPPORTED_SAVE_EXTENSIONS
+        ))
+    })
+}
+
+fn check_buffer(width: u32, height: u32, per_pixel: u64, len: usize, what: &str) -> Result<()> {
+    if width == 0 || height == 0 {
+        return Err(Error::InvalidParameter(format!(
+            "cannot write a {width}x{height} image"
+        )));
+    }
+    let expected = width as u64 * height as u64 * per_pixel;
+    if len as u64 != expected {
+        return Err(Error::InvalidParameter(format!(
+            "{what} has {len} entries, expected {expected} for a {width}x{height} image"
+        )));
+    }
+    Ok(())
+}
+
+fn encode_err(path: &Path, e: image::ImageError) -> Error {
+    Error::Write {
+        path: path.to_path_buf(),
+        reason: format!("encoding failed: {e}"),
+    }
+}
+
+/// Writes `rgba8` (`width * height * 4` bytes, row-major RGBA) atomically as a grey
+/// (`channels == 1`, the R channel), RGB (3) or RGBA (4) image. The format comes from the
+/// extension (see [`SUPPORTED_SAVE_EXTENSIONS`]; no extension: PNG); formats that lack
+/// the requested layout get the nearest one the encoder supports (JPEG drops alpha,
+/// HDR/EXR are written as float).
+pub fn save_image_atomic(
+    path: &Path,
+    width: u32,
+    height: u32,
+    channels: u32,
+    rgba8: &[u8],
+) -> Result<()> {
+    let format = save_format(path)?;
+    check_buffer(width, height, 4, rgba8.len(), "the RGBA8 buffer")?;
+    let img = match channels {
+        1 => {
+            let grey: Vec<u8> = rgba8.chunks_exact(4).map(|p| p[0]).collect();
+            DynamicImage::ImageLuma8(image::GrayImage::from_raw(width, height, grey).unwrap())
+        }
+        3 => {
+            let rgb: Vec<u8> = rgba8
+                .chunks_exact(4)
+                .flat_map(|p| [p[0], p[1], p[2]])
+                .collect();
+            DynamicImage::ImageRgb8(image::RgbImage::from_raw(width, height, rgb).unwrap())
+        }
+        4 => DynamicImage::ImageRgba8(
+            image::RgbaImage::from_raw(width, height, rgba8.to_vec()).unwrap(),
+        ),
+        c => {
+            return Err(Error::InvalidParameter(format!(
+                "cannot write {}: {c} channels requested; use 1 (grey), 3 (RGB) or 4 (RGBA)",
+                path.display()
+            )))
+        }
+    };
+    let mut buf = Cursor::new(Vec::new());
+    img.write_to(&mut buf, format)
+        .map_err(|e| encode_err(path, e))?;
+    let bytes = buf.into_inner();
+    write_atomic(path, |w| {
+        w.write_all(&bytes).map_err(|e| Error::Write {
+            path: path.to_path_buf(),
+            reason: e.to_string(),
+        })
+    })
+}
+
+// ---------------------------------------------------------------------------------------
+// Coordinate maps
+// ---------------------------------------------------------------------------------------
+
+/// Writes synthesized exemplar coordinates atomically as a 32-bit float RGB OpenEXR
+/// (whatever the extension): R = x, G = y, B = 0. Exact for |coordinate| < 2^24.
+pub fn save_coords_exr_atomic(
+    path: &Path,
+    width: u32,
+    height: u32,
+    coords: &[[i32; 2]],
+) -> Result<()> {
+    check_buffer(width, height, 1, coords.len(), "the coordinate map")?;
+    let data: Vec<f32> = coords
+        .iter()
+        .flat_map(|c| [c[0] as f32, c[1] as f32, 0.0])
+        .collect();
+    let img = image::Rgb32FImage::from_raw(width, height, data).unwrap();
+    let mut buf = Cursor::new(Vec::new());
+    DynamicImage::ImageRgb32F(img)
+        .write_to(&mut buf, ImageFormat::OpenExr)
+        .map_err(|e| encode_err(path, e))?;
+    let bytes = buf.into_inner();
+    write_atomic(path, |w| {
+        w.write_all(&bytes).map_err(|e| Error::Write {
+            path: path.to_path_buf(),
+            reason: e.to_string(),
+        })
+    })
+}
+
+/// Reads a coordinate map written by [`save_coords_exr_atomic`] (any float RGB/RGBA image
+/// the `image` crate reads): returns `(width, height, coords)` with R and G rounded to the
+/// nearest integer. Non-float images and non-finite or out-of-range values are
+/// [`Error::BadImage`].
+pub fn load_coords_exr(path: &Path) -> Result<(u32, u32, Vec<[i32; 2]>)> {
+    let img = decode_image(path)?;
+    let bad = |reason: String| Error::BadImage {
+        path: path.to_path_buf(),
+        reason,
+    };
+    let (width, height) = (img.width(), img.height());
+    let mut out = Vec::with_capacity(width as usize * height as usize);
+    let mut push = |x: f32, y: f32| -> Result<()> {
+        let ok = |v: f32| v.is_finite() && v.abs() <= i32::MAX as f32 / 2.0;
+        if !ok(x) || !ok(y) {
+            return Err(bad(format!(
+                "pixel {} holds ({x}, {y}), not a valid exemplar coordinate",
+                out.len()
+            )));
+        }
+        out.push([x.round() as i32, y.round() as i32]);
+        Ok(())
+    };
+    match &img {
+        DynamicImage::ImageRgb32F(b) => {
+            for p in b.pixels() {
+                push(p.0[0], p.0[1])?;
+            }
+        }
+        DynamicImage::ImageRgba32F(b) => {
+            for p in b.pixels() {
+                push(p.0[0], p.0[1])?;
+            }
+        }
+        other => {
+            return Err(bad(format!(
+                "not a float coordinate map (pixel type {:?}); write one with --coords-out",
+                other.color()
+            )))
+        }
+    }
+    Ok((width, height, out))
+}

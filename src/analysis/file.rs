@@ -1,0 +1,505 @@
+//! The analysis file (`texsyn analyze` output): a versioned, checksummed binary dump of
+//! an [`Analysis`].
+//!
+//! # Layout (all integers little-endian)
+//!
+//! ```text
+//! offset  size  field
+//! 0       8     magic  b"TEXSYNA\0"
+//! 8       4     u32    format version (FORMAT_VERSION = 1)
+//! 12      8     u64    payload length P in bytes
+//! 20      P     payload (below)
+//! 20+P    8     u64    FNV-1a 64 checksum of the P payload bytes
+//! ```
+//!
+//! Payload, version 1:
+//!
+//! ```text
+//! u32 width, u32 height, u32 channels, u8 tileable (0|1), u32 k
+//! u64 n_colors,  n_colors x [u8; 4]        RGBA8, row-major (n_colors == width*height)
+//! u32 n_levels                              (== level_count(width, height) + 1)
+//! n_levels x level:
+//!     u32 spacing                           (== 2^(n_levels-1-l))
+//!     u32 margin
+//!     u32 shift                             (< 32)
+//!     f32 residual_variance                 (IEEE bits)
+//!     f32 runtime_residual_variance
+//!     8 x 32 i16 proj                       row-major
+//!     u64 n_et,      n_et x 8 i16           (n_et == width*height)
+//!     u64 n_qe,      n_qe x 8 i16           (n_qe == width*height)
+//!     u64 n_offsets, n_offsets x 2 i16      (n_offsets == width*height*(k-1))
+//! ```
+//!
+//! Counts are element counts, not byte counts. The file must end right after the
+//! checksum. Decoding checks the magic, the version, the length, the checksum and then
+//! every decoded value (sizes 16..=65536, channels 1 or 3, k in 1..=MAX_K, level count,
+//! spacings, shifts, every count) before allocating anything, so a corrupt or crafted file
+//! gives [`Error::BadAnalysisFile`], never a panic or an allocation larger than the file.
+
+use std::io::Write;
+use std::path::Path;
+
+use super::{level_count, Analysis, LevelData, DIM, MAX_K};
+use crate::error::{Error, Result};
+
+/// First 8 bytes of every analysis file.
+pub const MAGIC: [u8; 8] = *b"TEXSYNA\0";
+/// Version of the layout written by this texsyn; the only one it reads.
+pub const FORMAT_VERSION: u32 = 1;
+/// Magic + version + payload length.
+const HEADER_LEN: usize = 8 + 4 + 8;
+const CHECKSUM_LEN: usize = 8;
+/// Largest accepted exemplar side.
+const MAX_SIDE: u32 = 65536;
+const MIN_SIDE: u32 = 16;
+
+const RERUN: &str = "re-run `texsyn analyze`";
+
+// ---------------------------------------------------------------------------------------
+// Checksum
+// ---------------------------------------------------------------------------------------
+
+const FNV_OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
+const FNV_PRIME: u64 = 0x0000_0100_0000_01b3;
+
+/// FNV-1a 64, streaming.
+#[derive(Clone, Copy)]
+struct Fnv1a(u64);
+
+impl Fnv1a {
+    fn new() -> Self {
+        Fnv1a(FNV_OFFSET)
+    }
+    fn update(&mut self, bytes: &[u8]) {
+        let mut h = self.0;
+        for &b in bytes {
+            h ^= b as u64;
+            h = h.wrapping_mul(FNV_PRIME);
+        }
+        self.0 = h;
+    }
+}
+
+fn fnv1a(bytes: &[u8]) -> u64 {
+    let mut h = Fnv1a::new();
+    h.update(bytes);
+    h.0
+}
+
+// ---------------------------------------------------------------------------------------
+// Encoding
+// ---------------------------------------------------------------------------------------
+
+/// Buffers small writes, hashes everything, forwards to `W` in large chunks.
+struct PayloadWriter<'a, W: Write> {
+    out: &'a mut W,
+    buf: Vec<u8>,
+    hash: Fnv1a,
+    written: u64,
+}
+
+const CHUNK: usize = 1 << 16;
+
+impl<'a, W: Write> PayloadWriter<'a, W> {
+    fn new(out: &'a mut W) -> Self {
+        Self {
+            out,
+            buf: Vec::with_capacity(CHUNK),
+            hash: Fnv1a::new(),
+            written: 0,
+        }
+    }
+    fn bytes(&mut self, b: &[u8]) -> std::io::Result<()> {
+        self.buf.extend_from_slice(b);
+        if self.buf.len() >= CHUNK {
+            self.flush_buf()?;
+        }
+        Ok(())
+    }
+    fn flush_buf(&mut self) -> std::io::Result<()> {
+        self.hash.update(&self.buf);
+        self.written += self.buf.len() as u64;
+        self.out.write_all(&self.buf)?;
+        self.buf.clear();
+        Ok(())
+    }
+    fn u8(&mut self, v: u8) -> std::io::Result<()> {
+        self.bytes(&[v])
+    }
+    fn u32(&mut self, v: u32) -> std::io::Result<()> {
+        self.bytes(&v.to_le_bytes())
+    }
+    fn u64(&mut self, v: u64) -> std::io::Result<()> {
+        self.bytes(&v.to_le_bytes())
+    }
+    fn f32(&mut self, v: f32) -> std::io::Result<()> {
+        self.bytes(&v.to_bits().to_le_bytes())
+    }
+    fn i16s(&mut self, vals: &[i16]) -> std::io::Result<()> {
+        for chunk in vals.chunks(CHUNK / 2) {
+            for &v in chunk {
+                self.buf.extend_from_slice(&v.to_le_bytes());
+            }
+            if self.buf.len() >= CHUNK {
+                self.flush_buf()?;
+            }
+        }
+        Ok(())
+    }
+    /// Flushes and returns (payload bytes written, checksum).
+    fn finish(mut self) -> std::io::Result<(u64, u64)> {
+        self.flush_buf()?;
+        Ok((self.written, self.hash.0))
+    }
+}
+
+impl Analysis {
+    /// Exact payload size in bytes (see the module doc).
+    fn payload_len(&self) -> u64 {
+        let mut n: u64 = 4 * 3 + 1 + 4; // width, height, channels, tileable, k
+        n += 8 + 4 * self.colors.len() as u64;
+        n += 4;
+        for lv in &self.levels {
+            n += 4 * 3 + 4 * 2; // spacing, margin, shift, two f32
+            n += 2 * (4 * DIM * DIM) as u64; // proj
+            n += 8 + 2 * DIM as u64 * lv.et.len() as u64;
+            n += 8 + 2 * DIM as u64 * lv.qe.len() as u64;
+            n += 8 + 4 * lv.offsets.len() as u64;
+        }
+        n
+    }
+
+    fn write_payload<W: Write>(&self, w: &mut PayloadWriter<'_, W>) -> std::io::Result<()> {
+        w.u32(self.width)?;
+        w.u32(self.height)?;
+        w.u32(self.channels)?;
+        w.u8(self.tileable as u8)?;
+        w.u32(self.k)?;
+        w.u64(self.colors.len() as u64)?;
+        for chunk in self.colors.chunks(CHUNK / 4) {
+            w.bytes(bytemuck::cast_slice(chunk))?;
+        }
+        w.u32(self.levels.len() as u32)?;
+        for lv in &self.levels {
+            w.u32(lv.spacing)?;
+            w.u32(lv.margin)?;
+            w.u32(lv.shift)?;
+            w.f32(lv.residual_variance)?;
+            w.f32(lv.runtime_residual_variance)?;
+            w.i16s(lv.proj.as_flattened())?;
+            w.u64(lv.et.len() as u64)?;
+            w.i16s(lv.et.as_flattened())?;
+            w.u64(lv.qe.len() as u64)?;
+            w.i16s(lv.qe.as_flattened())?;
+            w.u64(lv.offsets.len() as u64)?;
+            w.i16s(lv.offsets.as_flattened())?;
+        }
+        Ok(())
+    }
+
+    /// Writes the whole file (header, payload, checksum) to `out`.
+    fn write_file<W: Write>(&self, out: &mut W) -> std::io::Result<()> {
+        let len = self.payload_len();
+        out.write_all(&MAGIC)?;
+        out.write_all(&FORMAT_VERSION.to_le_bytes())?;
+        out.write_all(&len.to_le_bytes())?;
+        let mut pw = PayloadWriter::new(out);
+        self.write_payload(&mut pw)?;
+        let (written, hash) = pw.finish()?;
+        debug_assert_eq!(written, len, "payload_len disagrees with write_payload");
+        out.write_all(&hash.to_le_bytes())?;
+        Ok(())
+    }
+
+    /// The analysis file's bytes (see the module doc for the layout).
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let total = HEADER_LEN as u64 + self.payload_len() + CHECKSUM_LEN as u64;
+        let mut v = Vec::with_capacity(total as usize);
+        self.write_file(&mut v)
+            .expect("writing to a Vec cannot fail");
+        v
+    }
+
+    /// Saves the analysis atomically (temporary file + rename): `path` either keeps its
+    /// old content or gets the complete new file. Errors are [`Error::Write`].
+    pub fn save(&self, path: &Path) -> Result<()> {
+        crate::image_io::write_atomic(path, |w| {
+            self.write_file(w).map_err(|e| Error::Write {
+                path: path.to_path_buf(),
+                reason: e.to_string(),
+            })
+        })
+    }
+
+    /// Loads an analysis file written by [`Analysis::save`]. A missing or unreadable file
+    /// is [`Error::Io`]; anything wrong with the content is [`Error::BadAnalysisFile`].
+    pub fn load(path: &Path) -> Result<Analysis> {
+        let bytes = std::fs::read(path).map_err(|source| Error::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Self::from_bytes(&bytes, path)
+    }
+
+    /// Decodes an analysis file's bytes; `path_for_errors` only names the file in errors.
+    pub fn from_bytes(bytes: &[u8], path_for_errors: &Path) -> Result<Analysis> {
+        let bad = |reason: String| Error::BadAnalysisFile {
+            path: path_for_errors.to_path_buf(),
+            reason,
+        };
+
+        // Magic: a short file that is a prefix of the magic is truncated, else not ours.
+        if bytes.len() < MAGIC.len() {
+            if bytes.is_empty() {
+                return Err(bad(format!(
+                    "the file is empty (truncated: expected at least {} bytes, found 0); {RERUN}",
+                    HEADER_LEN + CHECKSUM_LEN
+                )));
+            }
+            if MAGIC.starts_with(bytes) {
+                return Err(bad(truncated(HEADER_LEN + CHECKSUM_LEN, bytes.len())));
+            }
+            return Err(bad(bad_magic()));
+        }
+        if bytes[..8] != MAGIC {
+            return Err(bad(bad_magic()));
+        }
+        if bytes.len() < 12 {
+            return Err(bad(truncated(HEADER_LEN + CHECKSUM_LEN, bytes.len())));
+        }
+        let version = u32::from_le_bytes(bytes[8..12].try_into().unwrap());
+        if version != FORMAT_VERSION {
+            return Err(bad(format!(
+                "analysis file version {version} is not supported by this texsyn (expects \
+                 {FORMAT_VERSION}); {RERUN}"
+            )));
+        }
+        if bytes.len() < HEADER_LEN {
+            return Err(bad(truncated(HEADER_LEN + CHECKSUM_LEN, bytes.len())));
+        }
+        let payload_len = u64::from_le_bytes(bytes[12..20].try_into().unwrap());
+        let expected = (HEADER_LEN as u64)
+            .checked_add(payload_len)
+            .and_then(|n| n.checked_add(CHECKSUM_LEN as u64));
+        let Some(expected) = expected else {
+            return Err(bad(format!(
+                "corrupt header: payload length {payload_len} is impossible; {RERUN}"
+            )));
+        };
+        if (bytes.len() as u64) < expected {
+            return Err(bad(format!(
+                "truncated: expected {expected} bytes, found {}; the file is incomplete, {RERUN}",
+                bytes.len()
+            )));
+        }
+        if (bytes.len() as u64) > expected {
+            return Err(bad(format!(
+                "trailing data: expected {expected} bytes, found {}; the file is corrupt, {RERUN}",
+                bytes.len()
+            )));
+        }
+        let payload_end = HEADER_LEN + payload_len as usize;
+        let payload = &bytes[HEADER_LEN..payload_end];
+        let stored = u64::from_le_bytes(bytes[payload_end..].try_into().unwrap());
+        if fnv1a(payload) != stored {
+            return Err(bad(format!(
+                "checksum mismatch: the file is corrupt; {RERUN}"
+            )));
+        }
+
+        decode_payload(payload).map_err(|e| bad(format!("invalid content: {e}; {RERUN}")))
+    }
+}
+
+fn bad_magic() -> String {
+    "not a texsyn analysis file (bad magic); pass a file written by `texsyn analyze`".into()
+}
+
+fn truncated(expected_at_least: usize, found: usize) -> String {
+    format!(
+        "truncated: expected at least {expected_at_least} bytes, found {found}; the file is \
+         incomplete, {RERUN}"
+    )
+}
+
+// ---------------------------------------------------------------------------------------
+// Decoding (after the checksum matched, so failures here mean a buggy or crafted file)
+// ---------------------------------------------------------------------------------------
+
+struct Reader<'a> {
+    bytes: &'a [u8],
+    pos: usize,
+}
+
+impl<'a> Reader<'a> {
+    fn remaining(&self) -> usize {
+        self.bytes.len() - self.pos
+    }
+    fn take(&mut self, n: usize, what: &str) -> std::result::Result<&'a [u8], String> {
+        if self.remaining() < n {
+            return Err(format!(
+                "{what} needs {n} bytes but the payload has only {} left",
+                self.remaining()
+            ));
+        }
+        let s = &self.bytes[self.pos..self.pos + n];
+        self.pos += n;
+        Ok(s)
+    }
+    fn u8(&mut self, what: &str) -> std::result::Result<u8, String> {
+        Ok(self.take(1, what)?[0])
+    }
+    fn u32(&mut self, what: &str) -> std::result::Result<u32, String> {
+        Ok(u32::from_le_bytes(self.take(4, what)?.try_into().unwrap()))
+    }
+    fn u64(&mut self, what: &str) -> std::result::Result<u64, String> {
+        Ok(u64::from_le_bytes(self.take(8, what)?.try_into().unwrap()))
+    }
+    fn f32(&mut self, what: &str) -> std::result::Result<f32, String> {
+        Ok(f32::from_bits(self.u32(what)?))
+    }
+    /// Reads a u64 element count, checks it equals `expected`, and checks the elements
+    /// (`elem_size` bytes each) are present; returns their bytes. Nothing is allocated.
+    fn counted(
+        &mut self,
+        expected: u64,
+        elem_size: usize,
+        what: &str,
+    ) -> std::result::Result<&'a [u8], String> {
+        let n = self.u64(what)?;
+        if n != expected {
+            return Err(format!("{what} has {n} entries, expected {expected}"));
+        }
+        let bytes = n
+            .checked_mul(elem_size as u64)
+            .filter(|&b| b <= self.remaining() as u64)
+            .ok_or_else(|| {
+                format!(
+                    "{what} needs {n} x {elem_size} bytes but the payload has only {} left",
+                    self.remaining()
+                )
+            })?;
+        self.take(bytes as usize, what)
+    }
+}
+
+fn i16_at(b: &[u8], i: usize) -> i16 {
+    i16::from_le_bytes([b[2 * i], b[2 * i + 1]])
+}
+
+fn decode_i16_arrays<const N: usize>(bytes: &[u8]) -> Vec<[i16; N]> {
+    bytes
+        .chunks_exact(2 * N)
+        .map(|c| std::array::from_fn(|i| i16_at(c, i)))
+        .collect()
+}
+
+fn decode_payload(payload: &[u8]) -> std::result::Result<Analysis, String> {
+    let mut r = Reader {
+        bytes: payload,
+        pos: 0,
+    };
+
+    let width = r.u32("width")?;
+    let height = r.u32("height")?;
+    for (name, v) in [("width", width), ("height", height)] {
+        if !(MIN_SIDE..=MAX_SIDE).contains(&v) {
+            return Err(format!("{name} {v} is outside {MIN_SIDE}..={MAX_SIDE}"));
+        }
+    }
+    let channels = r.u32("channels")?;
+    if channels != 1 && channels != 3 {
+        return Err(format!("channels is {channels}, expected 1 or 3"));
+    }
+    let tileable = match r.u8("tileable flag")? {
+        0 => false,
+        1 => true,
+        t => return Err(format!("tileable flag is {t}, expected 0 or 1")),
+    };
+    let k = r.u32("k")?;
+    if !(1..=MAX_K).contains(&k) {
+        return Err(format!("k is {k}, expected 1..={MAX_K}"));
+    }
+    let pixels = width as u64 * height as u64;
+
+    let colors: Vec<[u8; 4]> = r
+        .counted(pixels, 4, "colors")?
+        .chunks_exact(4)
+        .map(|c| [c[0], c[1], c[2], c[3]])
+        .collect();
+
+    let top = level_count(width, height);
+    let n_levels = r.u32("level count")?;
+    if n_levels != top + 1 {
+        return Err(format!(
+            "level count is {n_levels}, expected {} for a {width}x{height} exemplar",
+            top + 1
+        ));
+    }
+
+    let mut levels = Vec::with_capacity(n_levels as usize);
+    for l in 0..n_levels {
+        let lw = |f: &str| format!("level {l} {f}");
+        let spacing = r.u32(&lw("spacing"))?;
+        let expected_spacing = 1u32 << (top - l);
+        if spacing != expected_spacing {
+            return Err(format!(
+                "level {l} spacing is {spacing}, expected {expected_spacing}"
+            ));
+        }
+        let margin = r.u32(&lw("margin"))?;
+        if margin.saturating_mul(2) >= width.min(height) {
+            return Err(format!(
+                "level {l} margin {margin} leaves no valid region in a {width}x{height} exemplar"
+            ));
+        }
+        let shift = r.u32(&lw("shift"))?;
+        if shift >= 32 {
+            return Err(format!("level {l} shift is {shift}, expected < 32"));
+        }
+        let residual_variance = r.f32(&lw("residual variance"))?;
+        let runtime_residual_variance = r.f32(&lw("runtime residual variance"))?;
+
+        let proj_bytes = r.take(2 * 4 * DIM * DIM, &lw("projection"))?;
+        let mut proj = [[0i16; 4 * DIM]; DIM];
+        for (i, row) in proj.iter_mut().enumerate() {
+            for (j, v) in row.iter_mut().enumerate() {
+                *v = i16_at(proj_bytes, i * 4 * DIM + j);
+            }
+        }
+
+        let et = decode_i16_arrays::<DIM>(r.counted(pixels, 2 * DIM, &lw("et"))?);
+        let qe = decode_i16_arrays::<DIM>(r.counted(pixels, 2 * DIM, &lw("qe"))?);
+        let n_offsets = pixels * (k as u64 - 1);
+        let offsets = decode_i16_arrays::<2>(r.counted(n_offsets, 4, &lw("offsets"))?);
+
+        levels.push(LevelData {
+            spacing,
+            margin,
+            et,
+            proj,
+            qe,
+            shift,
+            offsets,
+            residual_variance,
+            runtime_residual_variance,
+        });
+    }
+
+    if r.remaining() != 0 {
+        return Err(format!(
+            "{} unexpected bytes after the last level",
+            r.remaining()
+        ));
+    }
+
+    Ok(Analysis {
+        width,
+        height,
+        channels,
+        tileable,
+        k,
+        colors,
+        levels,
+    })
+}

@@ -126,3 +126,146 @@ pub fn check_exemplar_size(width: u32, height: u32) -> Result<()> {
     }
     Ok(())
 }
+
+/// Runs `f` over `0..n` split into chunks on `threads` workers (0 = all cores) and
+/// returns the chunk results in order. Chunks are handed out dynamically so uneven work
+/// (kd-tree queries) balances; results do not depend on the thread count.
+pub fn par_ranges<T: Send>(n: usize, threads: usize, f: impl Fn(std::ops::Range<usize>) -> T + Sync) -> Vec<T> {
+    let threads = if threads == 0 {
+        std::thread::available_parallelism().map(|t| t.get()).unwrap_or(1)
+    } else {
+        threads
+    };
+    let chunk = n.div_ceil(threads * 8).max(256);
+    let chunks = n.div_ceil(chunk).max(1);
+    if threads <= 1 || chunks <= 1 {
+        return (0..chunks).map(|c| f(c * chunk..((c + 1) * chunk).min(n))).collect();
+    }
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let mut results: Vec<Option<T>> = (0..chunks).map(|_| None).collect();
+    std::thread::scope(|s| {
+        let handles: Vec<_> = (0..threads.min(chunks))
+            .map(|_| {
+                s.spawn(|| {
+                    let mut mine = Vec::new();
+                    loop {
+                        let c = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                        if c >= chunks {
+                            break;
+                        }
+                        mine.push((c, f(c * chunk..((c + 1) * chunk).min(n))));
+                    }
+                    mine
+                })
+            })
+            .collect();
+        for h in handles {
+            for (c, r) in h.join().expect("analysis worker panicked") {
+                results[c] = Some(r);
+            }
+        }
+    });
+    results.into_iter().map(|r| r.unwrap()).collect()
+}
+
+/// Whether the exemplar tiles: the mean squared difference across its wrap-around
+/// seams is compared with that between neighbouring interior pixels.
+pub fn detect_tileable(ex: &Exemplar) -> bool {
+    let (w, h, c) = (ex.width as usize, ex.height as usize, ex.channels as usize);
+    let px = |x: usize, y: usize| &ex.values[(y * w + x) * c..(y * w + x + 1) * c];
+    let d2 = |a: &[f32], b: &[f32]| a.iter().zip(b).map(|(x, y)| ((x - y) * (x - y)) as f64).sum::<f64>();
+    let (mut interior, mut ni) = (0.0, 0usize);
+    for y in 0..h {
+        for x in 0..w - 1 {
+            interior += d2(px(x, y), px(x + 1, y));
+            ni += 1;
+        }
+    }
+    for y in 0..h - 1 {
+        for x in 0..w {
+            interior += d2(px(x, y), px(x, y + 1));
+            ni += 1;
+        }
+    }
+    let (mut seam, mut ns) = (0.0, 0usize);
+    for y in 0..h {
+        seam += d2(px(w - 1, y), px(0, y));
+        ns += 1;
+    }
+    for x in 0..w {
+        seam += d2(px(x, h - 1), px(x, 0));
+        ns += 1;
+    }
+    let interior = interior / ni as f64;
+    let seam = seam / ns as f64;
+    seam <= 1.5 * interior + 1e-9
+}
+
+/// Progress of a running analysis, for display.
+#[derive(Clone, Copy, Debug)]
+pub struct Progress {
+    /// Levels done so far and in all.
+    pub done: u32,
+    pub total: u32,
+}
+
+/// Analyses an exemplar. `progress` is called after each level.
+pub fn analyze(ex: &Exemplar, opts: &AnalysisOptions, mut progress: impl FnMut(Progress)) -> Result<Analysis> {
+    check_exemplar_size(ex.width, ex.height)?;
+    if opts.k == 0 || opts.k > MAX_K {
+        return Err(Error::InvalidParameter(format!("k = {}: the similarity-set size must be between 1 and {MAX_K}", opts.k)));
+    }
+    if ex.width > i16::MAX as u32 || ex.height > i16::MAX as u32 {
+        return Err(Error::InvalidParameter(format!(
+            "exemplar {}x{} is larger than texsyn supports (32767 pixels a side); downsample it",
+            ex.width, ex.height
+        )));
+    }
+    let threads = opts.threads;
+    let tileable = opts.tileable.unwrap_or_else(|| detect_tileable(ex));
+    let top = level_count(ex.width, ex.height);
+    let plane = stack::Plane { width: ex.width, height: ex.height, channels: ex.channels, data: ex.values.clone() };
+    let stack = stack::gaussian_stack(plane, top, tileable, threads);
+    let mut levels = Vec::with_capacity(stack.len());
+    for (l, plane) in stack.iter().enumerate() {
+        let spacing = 1u32 << (top - l as u32);
+        let margin = level_margin(ex.width, ex.height, spacing, tileable);
+        let (et, residual) = appearance::transformed_exemplar(plane, spacing, tileable, threads);
+        let q = appearance::quantize_level(&et, ex.width, ex.height, spacing, tileable, threads);
+        let exclusion = opts.exclusion_radius.max(spacing).min(ex.width.min(ex.height) / 4);
+        let offsets = kcoherence::similarity_offsets(
+            &kcoherence::SimilarityQuery {
+                features: &q.features,
+                dim: appearance::FEATURE_DIM,
+                width: ex.width,
+                height: ex.height,
+                tileable,
+                margin,
+                exclusion_radius: exclusion,
+                k: opts.k,
+            },
+            threads,
+        );
+        levels.push(LevelData {
+            spacing,
+            margin,
+            et: q.et,
+            proj: q.proj,
+            qe: q.qe,
+            shift: q.shift,
+            offsets,
+            residual_variance: residual as f32,
+            runtime_residual_variance: q.runtime_residual as f32,
+        });
+        progress(Progress { done: l as u32 + 1, total: top + 1 });
+    }
+    Ok(Analysis {
+        width: ex.width,
+        height: ex.height,
+        channels: ex.channels,
+        tileable,
+        k: opts.k,
+        colors: ex.colors.clone(),
+        levels,
+    })
+}

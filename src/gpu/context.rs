@@ -1,0 +1,407 @@
+//! The wgpu device texsyn runs on: adapter selection, device creation and turning wgpu's
+//! asynchronous validation errors into [`Error::Gpu`].
+//!
+//! * [`GpuContext::headless`] picks an adapter from the environment (`TEXSYN_BACKEND`,
+//!   `TEXSYN_ADAPTER`); this is what the CLI uses.
+//! * [`GpuContext::with_options`] does the same from explicit [`GpuOptions`] and reads no
+//!   `TEXSYN_*` variable, for library users and tests.
+//! * [`GpuContext::from_device`] wraps a device the caller created itself.
+//!
+//! No window or surface is involved: synthesis is compute only.
+
+use std::fmt::Write as _;
+use std::sync::{Arc, Mutex};
+
+use crate::error::{Error, Result};
+
+/// Environment variable read by [`GpuContext::headless`] for [`GpuOptions::backend`].
+pub const BACKEND_ENV: &str = "TEXSYN_BACKEND";
+/// Environment variable read by [`GpuContext::headless`] for [`GpuOptions::adapter`].
+pub const ADAPTER_ENV: &str = "TEXSYN_ADAPTER";
+
+/// How [`GpuContext::with_options`] chooses its adapter.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct GpuOptions {
+    /// Graphics API: `vulkan`, `gl`, `metal`, `dx12` or `all` (case-insensitive; a
+    /// comma-separated list such as `vulkan,gl` also works). `None` (or empty): wgpu's
+    /// primary backends (Vulkan, Metal, DX12), falling back to GL only if none of them
+    /// offers a usable adapter.
+    pub backend: Option<String>,
+    /// Which adapter: a case-insensitive substring of its name (`llvmpipe`, `nvidia`), or a
+    /// decimal index into the list of adapters found (the list is printed in the
+    /// [`Error::NoAdapter`] message). `None` (or empty): prefer a discrete GPU, then an
+    /// integrated one, then a virtual one, then a CPU implementation such as lavapipe;
+    /// adapters without compute shaders are skipped.
+    pub adapter: Option<String>,
+}
+
+impl GpuOptions {
+    /// Options from `TEXSYN_BACKEND` and `TEXSYN_ADAPTER` (unset or empty: automatic).
+    pub fn from_env() -> Self {
+        let var = |name| std::env::var(name).ok().filter(|v| !v.trim().is_empty());
+        GpuOptions {
+            backend: var(BACKEND_ENV),
+            adapter: var(ADAPTER_ENV),
+        }
+    }
+}
+
+/// A wgpu device and queue, plus what texsyn needs to know about them.
+///
+/// Cloning is cheap (wgpu handles are reference counted) and shares the device.
+#[derive(Clone, Debug)]
+pub struct GpuContext {
+    /// The logical device. It was created with no optional features and, by
+    /// [`headless`](Self::headless) / [`with_options`](Self::with_options), with the
+    /// adapter's own limits (see [`limits`](Self::limits)).
+    pub device: wgpu::Device,
+    /// The device's queue.
+    pub queue: wgpu::Queue,
+    /// The adapter the device runs on. Always known: wgpu reports it for any device,
+    /// including one passed to [`from_device`](Self::from_device).
+    pub adapter_info: wgpu::AdapterInfo,
+    /// Errors that escaped every error scope (see [`take_uncaptured_errors`](Self::take_uncaptured_errors)).
+    uncaptured: Arc<Mutex<Vec<String>>>,
+}
+
+impl GpuContext {
+    /// A device without any window or surface, chosen from the environment:
+    /// `TEXSYN_BACKEND` and `TEXSYN_ADAPTER`, as described on [`GpuOptions`].
+    ///
+    /// This is the only constructor that reads those variables (wgpu itself still honours
+    /// its debugging variables such as `WGPU_DEBUG` / `WGPU_VALIDATION`).
+    pub fn headless() -> Result<Self> {
+        Self::with_options(GpuOptions::from_env())
+    }
+
+    /// A device without any window or surface, chosen by `options`; reads no `TEXSYN_*`
+    /// environment variable.
+    ///
+    /// Errors: [`Error::InvalidParameter`] for an unknown backend name,
+    /// [`Error::NoAdapter`] when no adapter matches (the message lists those found), and
+    /// [`Error::Gpu`] when the chosen adapter refuses to create a device.
+    pub fn with_options(options: GpuOptions) -> Result<Self> {
+        let backend = options
+            .backend
+            .as_deref()
+            .map(str::trim)
+            .filter(|s| !s.is_empty());
+        let selector = options
+            .adapter
+            .as_deref()
+            .map(str::trim)
+            .filter(|s| !s.is_empty());
+        let stages = backend_stages(backend)?;
+
+        // Adapters seen so far, for the error message.
+        let mut seen: Vec<wgpu::AdapterInfo> = Vec::new();
+        let mut chosen = None;
+        for backends in stages {
+            let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
+                backends,
+                flags: wgpu::InstanceFlags::from_env_or_default(),
+                ..wgpu::InstanceDescriptor::new_without_display_handle()
+            });
+            let adapters = pollster::block_on(instance.enumerate_adapters(backends));
+            let first_index = seen.len();
+            seen.extend(adapters.iter().map(wgpu::Adapter::get_info));
+            match select(&adapters, first_index, selector)? {
+                Some(i) => {
+                    chosen = Some(adapters[i].clone());
+                    break;
+                }
+                None => continue,
+            }
+        }
+
+        let Some(adapter) = chosen else {
+            return Err(Error::NoAdapter(no_adapter_message(
+                backend, selector, &seen,
+            )));
+        };
+        Self::from_adapter(&adapter)
+    }
+
+    /// Create the device on `adapter` with the adapter's own limits and no optional
+    /// features.
+    fn from_adapter(adapter: &wgpu::Adapter) -> Result<Self> {
+        let info = adapter.get_info();
+        let descriptor = wgpu::DeviceDescriptor {
+            label: Some("texsyn"),
+            required_features: wgpu::Features::empty(),
+            // The adapter's real limits rather than the WebGPU defaults, so large
+            // storage buffers and textures are allowed where the hardware allows them.
+            required_limits: adapter.limits(),
+            experimental_features: wgpu::ExperimentalFeatures::disabled(),
+            memory_hints: wgpu::MemoryHints::Performance,
+            trace: wgpu::Trace::Off,
+        };
+        let (device, queue) =
+            pollster::block_on(adapter.request_device(&descriptor)).map_err(|e| {
+                Error::Gpu(format!(
+                    "cannot create a device on {}: {}",
+                    describe_info(&info),
+                    error_chain(&e)
+                ))
+            })?;
+        Ok(Self::wrap(device, queue, info))
+    }
+
+    /// Wrap a device the caller created (any features and limits).
+    ///
+    /// `adapter_info` is taken from [`wgpu::Device::adapter_info`]. Like the other
+    /// constructors this installs texsyn's uncaptured-error handler on the device (see
+    /// [`take_uncaptured_errors`](Self::take_uncaptured_errors)), replacing any handler the
+    /// caller had set; set yours again afterwards if you need it.
+    pub fn from_device(device: wgpu::Device, queue: wgpu::Queue) -> Self {
+        let info = device.adapter_info();
+        Self::wrap(device, queue, info)
+    }
+
+    fn wrap(device: wgpu::Device, queue: wgpu::Queue, adapter_info: wgpu::AdapterInfo) -> Self {
+        let uncaptured = Arc::new(Mutex::new(Vec::new()));
+        let sink = Arc::clone(&uncaptured);
+        // wgpu's default handler panics; log instead, and keep the message so that
+        // `take_uncaptured_errors` can turn it into an `Error::Gpu`.
+        device.on_uncaptured_error(Arc::new(move |error: wgpu::Error| {
+            let message = describe_wgpu_error(&error);
+            eprintln!("texsyn: uncaptured wgpu error: {message}");
+            if let Ok(mut errors) = sink.lock() {
+                // Bounded: a broken loop must not grow this forever.
+                if errors.len() < 64 {
+                    errors.push(message);
+                }
+            }
+        }));
+        GpuContext {
+            device,
+            queue,
+            adapter_info,
+            uncaptured,
+        }
+    }
+
+    /// One line about the adapter, e.g.
+    /// `llvmpipe (LLVM 15.0.6, 256 bits) [Vulkan, Cpu, driver: llvmpipe Mesa 22.3.6 (LLVM 15.0.6)]`.
+    pub fn describe(&self) -> String {
+        describe_info(&self.adapter_info)
+    }
+
+    /// The device's limits (for [`headless`](Self::headless) and
+    /// [`with_options`](Self::with_options): the adapter's full limits).
+    pub fn limits(&self) -> wgpu::Limits {
+        self.device.limits()
+    }
+
+    /// Run `f` (which records wgpu calls on this device) inside validation,
+    /// out-of-memory and internal error scopes, and turn the first error caught into
+    /// [`Error::Gpu`]; on error `f`'s value is dropped.
+    ///
+    /// Error scopes are per thread: `f` runs on the calling thread, and wgpu calls it
+    /// makes from other threads are not covered. Errors surfacing later (e.g. at
+    /// `queue.submit`) need their own scope or [`take_uncaptured_errors`](Self::take_uncaptured_errors).
+    pub fn scoped<T>(&self, f: impl FnOnce() -> T) -> Result<T> {
+        let internal = self.device.push_error_scope(wgpu::ErrorFilter::Internal);
+        let oom = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let validation = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let value = f();
+        // Pop in reverse order of pushing (wgpu panics otherwise). Each pop takes effect
+        // immediately; awaiting only fetches the result.
+        let validation = validation.pop();
+        let oom = oom.pop();
+        let internal = internal.pop();
+        let errors = [
+            pollster::block_on(validation),
+            pollster::block_on(oom),
+            pollster::block_on(internal),
+        ];
+        match errors.into_iter().flatten().next() {
+            Some(error) => Err(Error::Gpu(describe_wgpu_error(&error))),
+            None => Ok(value),
+        }
+    }
+
+    /// Errors that escaped every error scope since the last call (they were also
+    /// printed to stderr when they happened), as one [`Error::Gpu`]; `Ok(())` if none.
+    pub fn take_uncaptured_errors(&self) -> Result<()> {
+        let errors = match self.uncaptured.lock() {
+            Ok(mut errors) => std::mem::take(&mut *errors),
+            Err(poisoned) => std::mem::take(&mut *poisoned.into_inner()),
+        };
+        if errors.is_empty() {
+            Ok(())
+        } else {
+            Err(Error::Gpu(errors.join("\n")))
+        }
+    }
+
+    /// Block until all submitted work has finished.
+    pub fn wait_idle(&self) -> Result<()> {
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map(|_| ())
+            .map_err(|e| Error::Gpu(format!("waiting for the device: {e}")))
+    }
+}
+
+/// The backend sets to try in order: the first that yields a matching adapter wins.
+fn backend_stages(backend: Option<&str>) -> Result<Vec<wgpu::Backends>> {
+    let Some(spec) = backend else {
+        return Ok(vec![wgpu::Backends::PRIMARY, wgpu::Backends::GL]);
+    };
+    let mut backends = wgpu::Backends::empty();
+    for name in spec.split(',').map(|s| s.trim().to_ascii_lowercase()) {
+        backends |= match name.as_str() {
+            "vulkan" | "vk" => wgpu::Backends::VULKAN,
+            "gl" | "gles" | "opengl" => wgpu::Backends::GL,
+            "metal" | "mtl" => wgpu::Backends::METAL,
+            "dx12" | "d3d12" => wgpu::Backends::DX12,
+            "all" => wgpu::Backends::PRIMARY | wgpu::Backends::GL,
+            _ => {
+                return Err(Error::InvalidParameter(format!(
+                    "unknown GPU backend \"{name}\" (from {BACKEND_ENV} or the backend \
+                     option); expected vulkan, gl, metal, dx12 or all"
+                )))
+            }
+        };
+    }
+    Ok(vec![backends])
+}
+
+/// Index (into `adapters`) of the adapter `selector` asks for, or the preferred one.
+/// `first_index` is the index of `adapters[0]` in the overall list shown to users.
+fn select(
+    adapters: &[wgpu::Adapter],
+    first_index: usize,
+    selector: Option<&str>,
+) -> Result<Option<usize>> {
+    let infos: Vec<wgpu::AdapterInfo> = adapters.iter().map(wgpu::Adapter::get_info).collect();
+    let has_compute = |i: usize| {
+        adapters[i]
+            .get_downlevel_capabilities()
+            .flags
+            .contains(wgpu::DownlevelFlags::COMPUTE_SHADERS)
+    };
+    let found = match selector {
+        Some(sel) => match sel.parse::<usize>() {
+            Ok(index) => index
+                .checked_sub(first_index)
+                .filter(|&i| i < adapters.len()),
+            Err(_) => {
+                let needle = sel.to_lowercase();
+                // Prefer a matching adapter that can run compute shaders.
+                let matching: Vec<usize> = (0..infos.len())
+                    .filter(|&i| infos[i].name.to_lowercase().contains(&needle))
+                    .collect();
+                best(&infos, matching.iter().copied().filter(|&i| has_compute(i)))
+                    .or_else(|| best(&infos, matching.iter().copied()))
+            }
+        },
+        None => best(&infos, (0..infos.len()).filter(|&i| has_compute(i))),
+    };
+    if let Some(i) = found {
+        if !has_compute(i) {
+            return Err(Error::NoAdapter(format!(
+                "adapter [{}] {} does not support compute shaders, which texsyn needs; \
+                 choose another with {ADAPTER_ENV}",
+                first_index + i,
+                describe_info(&infos[i])
+            )));
+        }
+    }
+    Ok(found)
+}
+
+/// The preferred adapter among `candidates`: by device type, then primary backends over
+/// GL, then enumeration order.
+fn best(infos: &[wgpu::AdapterInfo], candidates: impl Iterator<Item = usize>) -> Option<usize> {
+    candidates.min_by_key(|&i| {
+        let info = &infos[i];
+        let kind = match info.device_type {
+            wgpu::DeviceType::DiscreteGpu => 0,
+            wgpu::DeviceType::IntegratedGpu => 1,
+            wgpu::DeviceType::VirtualGpu => 2,
+            wgpu::DeviceType::Cpu => 3,
+            wgpu::DeviceType::Other => 4,
+        };
+        (kind, info.backend == wgpu::Backend::Gl, i)
+    })
+}
+
+fn no_adapter_message(
+    backend: Option<&str>,
+    selector: Option<&str>,
+    seen: &[wgpu::AdapterInfo],
+) -> String {
+    let backends = backend.unwrap_or("vulkan/metal/dx12, then gl");
+    let mut message = match selector {
+        Some(sel) => format!(
+            "no adapter matches \"{sel}\" ({ADAPTER_ENV} or the adapter option takes a \
+             case-insensitive part of an adapter name, or its index in the list below)"
+        ),
+        None => "no adapter with compute shader support".to_string(),
+    };
+    let _ = write!(message, "; backends tried: {backends}");
+    if seen.is_empty() {
+        message.push_str("; no adapters were found at all");
+    } else {
+        message.push_str("; adapters found:");
+        for (i, info) in seen.iter().enumerate() {
+            let _ = write!(message, "\n  [{i}] {}", describe_info(info));
+        }
+        let _ = write!(
+            message,
+            "\nchoose one with {ADAPTER_ENV}=<name part or index> (and {BACKEND_ENV}=<backend>)"
+        );
+    }
+    message
+}
+
+/// `name [Backend, DeviceType, driver: driver driver_info]`.
+fn describe_info(info: &wgpu::AdapterInfo) -> String {
+    let driver = [info.driver.trim(), info.driver_info.trim()]
+        .into_iter()
+        .filter(|s| !s.is_empty())
+        .collect::<Vec<_>>()
+        .join(" ");
+    let name = if info.name.is_empty() {
+        "unnamed adapter"
+    } else {
+        info.name.as_str()
+    };
+    if driver.is_empty() {
+        format!("{name} [{:?}, {:?}]", info.backend, info.device_type)
+    } else {
+        format!(
+            "{name} [{:?}, {:?}, driver: {driver}]",
+            info.backend, info.device_type
+        )
+    }
+}
+
+/// `kind: description` for a wgpu error (its description already holds the cause chain).
+fn describe_wgpu_error(error: &wgpu::Error) -> String {
+    match error {
+        wgpu::Error::OutOfMemory { source } => format!("out of GPU memory: {source}"),
+        wgpu::Error::Validation { description, .. } => {
+            format!("validation error: {}", description.trim_end())
+        }
+        wgpu::Error::Internal { description, .. } => {
+            format!("internal error: {}", description.trim_end())
+        }
+    }
+}
+
+/// An error and its causes, `a: b: c`.
+fn error_chain(error: &dyn std::error::Error) -> String {
+    let mut message = error.to_string();
+    let mut cause = error.source();
+    while let Some(c) = cause {
+        let text = c.to_string();
+        if !message.contains(&text) {
+            let _ = write!(message, ": {text}");
+        }
+        cause = c.source();
+    }
+    message
+}

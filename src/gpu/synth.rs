@@ -1,0 +1,421 @@
+//! Synthesis on the GPU: uploads an [`Analysis`] once, then runs the plan's dispatches
+//! (upsample, jitter, correction subpasses per level, gather) in one compute pass per
+//! call. Results stay on the GPU (a `wgpu::Texture`) or are read back to the host.
+
+use std::sync::{Arc, Mutex};
+
+use wgpu::util::DeviceExt;
+
+use super::context::GpuContext;
+use super::shaders::{self, ShaderSource};
+use crate::analysis::Analysis;
+use crate::error::{Error, Result};
+use crate::passes::common::{PassParams, PARAMS_STRIDE};
+use crate::passes::plan::{Dispatch, PassKind, SynthPlan};
+use crate::passes::{SynthParams, Synthesis};
+
+/// Format of the synthesized colour texture.
+pub const OUTPUT_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
+
+/// A synthesized texture on the GPU.
+pub struct GpuSynthesis {
+    /// RGBA8 colours (`Rgba8Unorm`, usages: storage, texture binding, copy source).
+    pub texture: wgpu::Texture,
+    pub width: u32,
+    pub height: u32,
+}
+
+/// The coordinate pyramid, kept between calls of the same or smaller size. Sharing it
+/// is safe even for several syntheses recorded into one encoder: they run in order.
+struct Scratch {
+    coord_count: u64,
+    coords: wgpu::Buffer,
+}
+
+/// An exemplar uploaded to a device, ready to synthesize any number of textures.
+pub struct GpuSynthesizer {
+    analysis: Arc<Analysis>,
+    layout: wgpu::BindGroupLayout,
+    upsample: wgpu::ComputePipeline,
+    jitter: wgpu::ComputePipeline,
+    correct: wgpu::ComputePipeline,
+    gather: wgpu::ComputePipeline,
+    et: wgpu::Buffer,
+    qe: wgpu::Buffer,
+    offsets: wgpu::Buffer,
+    proj: wgpu::Buffer,
+    colors: wgpu::Buffer,
+    scratch: Mutex<Option<Scratch>>,
+}
+
+fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only },
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+fn too_large(what: &'static str, width: u32, height: u32, limit: String, hint: &'static str) -> Error {
+    Error::TooLarge { what, width, height, limit, hint }
+}
+
+/// Bytes of a buffer holding `data`, never empty (WebGPU rejects 0-sized bindings).
+fn padded<T: bytemuck::Pod>(data: &[T]) -> Vec<u8> {
+    let mut b = bytemuck::cast_slice(data).to_vec();
+    b.resize(b.len().max(16).next_multiple_of(4), 0);
+    b
+}
+
+impl GpuSynthesizer {
+    /// Uploads the analysis and builds the pipelines. Fails with a clear error if the
+    /// exemplar tables exceed the device's buffer limits.
+    pub fn new(ctx: &GpuContext, analysis: Arc<Analysis>) -> Result<Self> {
+        let a = &*analysis;
+        let limits = ctx.limits();
+        let px = a.width as u64 * a.height as u64;
+        let levels = a.levels.len() as u64;
+        let table_bytes = px * levels * 16;
+        let offset_bytes = px * levels * 4 * (a.k.saturating_sub(1) as u64);
+        let max_binding = limits.max_storage_buffer_binding_size as u64;
+        let max_buffer = limits.max_buffer_size;
+        let biggest = table_bytes.max(offset_bytes);
+        if biggest > max_binding.min(max_buffer) {
+            return Err(too_large(
+                "exemplar",
+                a.width,
+                a.height,
+                format!("its tables need {} MiB in one buffer, the device allows {} MiB", biggest >> 20, max_binding.min(max_buffer) >> 20),
+                "use a smaller exemplar (downsample it) or a smaller k",
+            ));
+        }
+        let device = &ctx.device;
+        ctx.scoped(|| {
+            let mut et = Vec::with_capacity((px * levels) as usize);
+            let mut qe = Vec::with_capacity((px * levels) as usize);
+            let mut offsets = Vec::with_capacity((px * levels) as usize * a.k.saturating_sub(1) as usize);
+            let mut proj: Vec<i32> = Vec::with_capacity(a.levels.len() * 256);
+            for l in &a.levels {
+                et.extend_from_slice(&l.et);
+                qe.extend_from_slice(&l.qe);
+                offsets.extend_from_slice(&l.offsets);
+                for row in &l.proj {
+                    proj.extend(row.iter().map(|&v| v as i32));
+                }
+            }
+            let init = |label: &str, contents: &[u8]| {
+                device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some(label),
+                    contents,
+                    usage: wgpu::BufferUsages::STORAGE,
+                })
+            };
+            let et = init("texsyn et", &padded(&et));
+            let qe = init("texsyn qe", &padded(&qe));
+            let offsets = init("texsyn offsets", &padded(&offsets));
+            let proj = init("texsyn proj", &padded(&proj));
+            let colors = init("texsyn colors", &padded(&a.colors));
+
+            let mut entries = vec![wgpu::BindGroupLayoutEntry {
+                binding: 0,
+                visibility: wgpu::ShaderStages::COMPUTE,
+                ty: wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Uniform,
+                    has_dynamic_offset: true,
+                    min_binding_size: wgpu::BufferSize::new(std::mem::size_of::<PassParams>() as u64),
+                },
+                count: None,
+            }];
+            entries.push(storage_entry(1, false));
+            for b in 2..=6 {
+                entries.push(storage_entry(b, true));
+            }
+            entries.push(wgpu::BindGroupLayoutEntry {
+                binding: 7,
+                visibility: wgpu::ShaderStages::COMPUTE,
+                ty: wgpu::BindingType::StorageTexture {
+                    access: wgpu::StorageTextureAccess::WriteOnly,
+                    format: OUTPUT_FORMAT,
+                    view_dimension: wgpu::TextureViewDimension::D2,
+                },
+                count: None,
+            });
+            let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("texsyn passes"), entries: &entries });
+            let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some("texsyn passes"),
+                bind_group_layouts: &[Some(&layout)],
+                immediate_size: 0,
+            });
+            let pipeline = |s: &ShaderSource| {
+                let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                    label: Some(s.file),
+                    source: wgpu::ShaderSource::Wgsl(s.source.into()),
+                });
+                device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                    label: Some(s.name),
+                    layout: Some(&pipeline_layout),
+                    module: &module,
+                    entry_point: Some(s.entry_point),
+                    compilation_options: Default::default(),
+                    cache: None,
+                })
+            };
+            Self {
+                upsample: pipeline(&shaders::UPSAMPLE),
+                jitter: pipeline(&shaders::JITTER),
+                correct: pipeline(&shaders::CORRECT),
+                gather: pipeline(&shaders::GATHER),
+                layout,
+                et,
+                qe,
+                offsets,
+                proj,
+                colors,
+                analysis: analysis.clone(),
+                scratch: Mutex::new(None),
+            }
+        })
+    }
+
+    pub fn analysis(&self) -> &Analysis {
+        &self.analysis
+    }
+
+    /// Checks an output size against the device limits before any work is recorded.
+    fn check_output(&self, ctx: &GpuContext, plan: &SynthPlan) -> Result<()> {
+        let limits = ctx.limits();
+        let p = &plan.params;
+        let max_dim = limits.max_texture_dimension_2d;
+        if p.width > max_dim || p.height > max_dim {
+            return Err(too_large("output", p.width, p.height, format!("at most {max_dim} pixels a side"), "synthesize it in windows (SynthParams::origin) and assemble them"));
+        }
+        let bytes = plan.coord_count * 8;
+        let max = (limits.max_storage_buffer_binding_size as u64).min(limits.max_buffer_size);
+        if bytes > max {
+            return Err(too_large(
+                "output",
+                p.width,
+                p.height,
+                format!("its coordinate pyramid needs {} MiB in one buffer, the device allows {} MiB", bytes >> 20, max >> 20),
+                "synthesize it in windows (SynthParams::origin) and assemble them",
+            ));
+        }
+        let groups = limits.max_compute_workgroups_per_dimension as u64 * 8;
+        let fin = plan.levels.last().unwrap();
+        if fin.size[0] as u64 > groups || fin.size[1] as u64 > groups {
+            return Err(too_large("output", p.width, p.height, format!("at most {groups} pixels a side per dispatch"), "synthesize it in windows"));
+        }
+        Ok(())
+    }
+
+    fn scratch_for(&self, ctx: &GpuContext, plan: &SynthPlan) -> std::sync::MutexGuard<'_, Option<Scratch>> {
+        let mut guard = self.scratch.lock().unwrap_or_else(|e| e.into_inner());
+        let fits = guard.as_ref().is_some_and(|s| s.coord_count >= plan.coord_count);
+        if !fits {
+            let coords = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("texsyn coords"),
+                size: (plan.coord_count * 8).max(16),
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            });
+            *guard = Some(Scratch { coord_count: plan.coord_count, coords });
+        }
+        guard
+    }
+
+    /// Records the first `count` dispatches of the synthesis into `encoder`, writing
+    /// colours to `target`. Returns the plan and the coordinate buffer.
+    fn record(&self, ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder, plan: &SynthPlan, schedule: &[Dispatch], target: &wgpu::TextureView, clear: bool) -> wgpu::Buffer {
+        let guard = self.scratch_for(ctx, plan);
+        let scratch = guard.as_ref().unwrap();
+        if clear {
+            encoder.clear_buffer(&scratch.coords, 0, None);
+        }
+        let mut bytes = vec![0u8; schedule.len().max(1) * PARAMS_STRIDE as usize];
+        for (i, d) in schedule.iter().enumerate() {
+            let o = i * PARAMS_STRIDE as usize;
+            bytes[o..o + std::mem::size_of::<PassParams>()].copy_from_slice(bytemuck::bytes_of(&d.params));
+        }
+        // Parameters live in their own buffer per call: a later call must not overwrite
+        // them before this one's commands have run.
+        let params = ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("texsyn params"),
+            contents: &bytes,
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("texsyn passes"),
+            layout: &self.layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                        buffer: &params,
+                        offset: 0,
+                        size: wgpu::BufferSize::new(std::mem::size_of::<PassParams>() as u64),
+                    }),
+                },
+                wgpu::BindGroupEntry { binding: 1, resource: scratch.coords.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 2, resource: self.et.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 3, resource: self.qe.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 4, resource: self.offsets.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 5, resource: self.proj.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 6, resource: self.colors.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 7, resource: wgpu::BindingResource::TextureView(target) },
+            ],
+        });
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("texsyn synthesis"), timestamp_writes: None });
+            for (i, d) in schedule.iter().enumerate() {
+                let pipeline = match d.kind {
+                    PassKind::Upsample => &self.upsample,
+                    PassKind::Jitter => &self.jitter,
+                    PassKind::Correct => &self.correct,
+                    PassKind::Gather => &self.gather,
+                };
+                let [tx, ty] = d.threads();
+                if tx == 0 || ty == 0 {
+                    continue;
+                }
+                pass.set_pipeline(pipeline);
+                pass.set_bind_group(0, &bind_group, &[(i as u64 * PARAMS_STRIDE) as u32]);
+                pass.dispatch_workgroups(tx.div_ceil(8), ty.div_ceil(8), 1);
+            }
+        }
+        scratch.coords.clone()
+    }
+
+    fn output_texture(&self, ctx: &GpuContext, width: u32, height: u32) -> wgpu::Texture {
+        ctx.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("texsyn output"),
+            size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: OUTPUT_FORMAT,
+            usage: wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_SRC,
+            view_formats: &[],
+        })
+    }
+
+    /// Records a whole synthesis into the caller's encoder; the returned texture holds
+    /// the colours once the caller submits the encoder. Nothing is read back.
+    pub fn encode(&self, ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder, params: &SynthParams) -> Result<GpuSynthesis> {
+        let plan = SynthPlan::new(&self.analysis, params)?;
+        self.check_output(ctx, &plan)?;
+        let schedule = plan.schedule(&self.analysis);
+        ctx.scoped(|| {
+            let texture = self.output_texture(ctx, params.width, params.height);
+            let view = texture.create_view(&Default::default());
+            self.record(ctx, encoder, &plan, &schedule, &view, false);
+            GpuSynthesis { texture, width: params.width, height: params.height }
+        })
+    }
+
+    /// Synthesizes and submits; returns when the GPU has finished.
+    pub fn synthesize(&self, ctx: &GpuContext, params: &SynthParams) -> Result<GpuSynthesis> {
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        let out = self.encode(ctx, &mut encoder, params)?;
+        ctx.scoped(|| ctx.queue.submit([encoder.finish()]))?;
+        wait(ctx)?;
+        Ok(out)
+    }
+
+    /// Synthesizes and reads colours and coordinates back to the host.
+    pub fn synthesize_to_host(&self, ctx: &GpuContext, params: &SynthParams) -> Result<Synthesis> {
+        let plan = SynthPlan::new(&self.analysis, params)?;
+        self.check_output(ctx, &plan)?;
+        let schedule = plan.schedule(&self.analysis);
+        let (w, h) = (params.width, params.height);
+        let texture = ctx.scoped(|| self.output_texture(ctx, w, h))?;
+        let view = texture.create_view(&Default::default());
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        let coords = ctx.scoped(|| self.record(ctx, &mut encoder, &plan, &schedule, &view, false))?;
+        let fin = plan.levels.last().unwrap();
+        let fin_bytes = fin.size[0] as u64 * fin.size[1] as u64 * 8;
+        let row = (w as u64 * 4).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT as u64);
+        let readback = ctx.scoped(|| {
+            let rb = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("texsyn readback"),
+                size: row * h as u64 + fin_bytes,
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            encoder.copy_texture_to_buffer(
+                wgpu::TexelCopyTextureInfo { texture: &texture, mip_level: 0, origin: wgpu::Origin3d::ZERO, aspect: wgpu::TextureAspect::All },
+                wgpu::TexelCopyBufferInfo {
+                    buffer: &rb,
+                    layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(row as u32), rows_per_image: Some(h) },
+                },
+                wgpu::Extent3d { width: w, height: h, depth_or_array_layers: 1 },
+            );
+            encoder.copy_buffer_to_buffer(&coords, fin.coord_base as u64 * 8, &rb, row * h as u64, fin_bytes);
+            ctx.queue.submit([encoder.finish()]);
+            rb
+        })?;
+        let bytes = read_buffer(ctx, &readback)?;
+        let mut colors = Vec::with_capacity((w * h) as usize);
+        for y in 0..h as usize {
+            let r = &bytes[y * row as usize..y * row as usize + w as usize * 4];
+            colors.extend(r.chunks_exact(4).map(|c| [c[0], c[1], c[2], c[3]]));
+        }
+        let level_coords: &[[i32; 2]] = bytemuck::cast_slice(&bytes[(row * h as u64) as usize..]);
+        let mut window = Vec::with_capacity((w * h) as usize);
+        for y in 0..h {
+            let start = ((y + plan.window_offset[1]) * fin.size[0] + plan.window_offset[0]) as usize;
+            window.extend_from_slice(&level_coords[start..start + w as usize]);
+        }
+        Ok(Synthesis { width: w, height: h, coords: window, colors })
+    }
+
+    /// Test hook: runs only the first `count` dispatches of the schedule and returns the
+    /// whole coordinate array (every level), to compare with the CPU mirror pass by pass.
+    pub fn run_prefix(&self, ctx: &GpuContext, params: &SynthParams, count: usize) -> Result<Vec<[i32; 2]>> {
+        let plan = SynthPlan::new(&self.analysis, params)?;
+        self.check_output(ctx, &plan)?;
+        let schedule = plan.schedule(&self.analysis);
+        let schedule = &schedule[..count.min(schedule.len())];
+        let texture = ctx.scoped(|| self.output_texture(ctx, params.width, params.height))?;
+        let view = texture.create_view(&Default::default());
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        let bytes = plan.coord_count * 8;
+        let readback = ctx.scoped(|| {
+            // Cleared first so levels not yet written read as zeros, as on the CPU.
+            let coords = self.record(ctx, &mut encoder, &plan, schedule, &view, true);
+            let rb = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("texsyn coords readback"),
+                size: bytes,
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            encoder.copy_buffer_to_buffer(&coords, 0, &rb, 0, bytes);
+            ctx.queue.submit([encoder.finish()]);
+            rb
+        })?;
+        let data = read_buffer(ctx, &readback)?;
+        Ok(bytemuck::cast_slice(&data).to_vec())
+    }
+}
+
+fn wait(ctx: &GpuContext) -> Result<()> {
+    ctx.device.poll(wgpu::PollType::wait_indefinitely()).map(|_| ()).map_err(|e| Error::Gpu(format!("waiting for the GPU: {e}")))
+}
+
+fn read_buffer(ctx: &GpuContext, buffer: &wgpu::Buffer) -> Result<Vec<u8>> {
+    let (tx, rx) = std::sync::mpsc::channel();
+    buffer.map_async(wgpu::MapMode::Read, .., move |r| {
+        let _ = tx.send(r);
+    });
+    wait(ctx)?;
+    rx.recv()
+        .map_err(|_| Error::Gpu("buffer mapping was cancelled".into()))?
+        .map_err(|e| Error::Gpu(format!("reading back results: {e}")))?;
+    let data = buffer.get_mapped_range(..).map_err(|e| Error::Gpu(format!("reading back results: {e}")))?.to_vec();
+    buffer.unmap();
+    Ok(data)
+}

@@ -1,0 +1,117 @@
+//! Mirror of `shaders/correct.wgsl`: one correction subpass. Pixels whose absolute
+//! position has parity `p.parity` are replaced by the best of their k-coherent
+//! candidates; all other pixels are only read, so the subpass can run in place.
+//!
+//! Neighbourhood (isometric): for each diagonal `D`, three predictions of the appearance
+//! at `p + D` from the pixels `p + D'`, `D' in {D, (D.x,0), (0,D.y)}`:
+//! `Et[S[p+D'] + h (D - D')]`. Their integer sum per diagonal, times the quantized
+//! projection block `P_D`, summed over the diagonals, is `3 * Np_S` in the units of the
+//! exemplar side `qe` (`3 * P N_E`). Both are shifted by `shift`, so the comparison is
+//! exact integer arithmetic.
+//!
+//! Candidates: `S[p+d] + O_i(S[p+d]) - h d` for `d` in the 3x3 block (row-major from
+//! (-1,-1)), `i = 1..k` (i = 1 is the coherent candidate, offset 0). The first candidate
+//! with the strictly smallest distance wins; the current value is tried first, so ties
+//! keep it. Non-coherent candidates (i > 1) pay `dist * (1 + coherence/16)`. Candidates
+//! outside the valid region (non-tileable exemplars) are skipped.
+
+use super::common::{fit_coord, is_valid, read_coord, region_index, PassParams};
+use crate::analysis::{DIAGONALS, DIM, QE_MAX};
+
+/// The per-level tables a correction pass reads.
+pub struct LevelTables<'a> {
+    pub et: &'a [[i16; DIM]],
+    pub qe: &'a [[i16; DIM]],
+    pub offsets: &'a [[i16; 2]],
+    pub proj: &'a [[i16; 4 * DIM]; DIM],
+}
+
+#[inline]
+fn ex_index(c: [i32; 2], p: &PassParams) -> usize {
+    (c[1] * p.ex_size[0] + c[0]) as usize
+}
+
+/// `3 * P * N_S(p)` shifted, for the pixel at region position `q`.
+pub fn synthesized_neighbourhood(p: &PassParams, t: &LevelTables, coords: &[[i32; 2]], q: [i32; 2]) -> [i32; DIM] {
+    let base = p.coord_base as usize;
+    let h = p.spacing;
+    let mut acc = [0i32; DIM];
+    for (j, d) in DIAGONALS.iter().enumerate() {
+        let mut sum = [0i32; DIM];
+        for dp in [*d, [d[0], 0], [0, d[1]]] {
+            let s = coords[base + region_index([q[0] + dp[0], q[1] + dp[1]], p)];
+            let u = read_coord([s[0] + h * (d[0] - dp[0]), s[1] + h * (d[1] - dp[1])], p);
+            let e = t.et[ex_index(u, p)];
+            for c in 0..DIM {
+                sum[c] += e[c] as i32;
+            }
+        }
+        for (r, a) in acc.iter_mut().enumerate() {
+            for c in 0..DIM {
+                *a += t.proj[r][j * DIM + c] as i32 * sum[c];
+            }
+        }
+    }
+    acc.map(|v| v >> p.shift)
+}
+
+#[inline]
+pub fn distance(ns: &[i32; DIM], qe: &[i16; DIM]) -> u32 {
+    let mut d = 0u32;
+    for c in 0..DIM {
+        let x = (ns[c] - qe[c] as i32).clamp(-2 * QE_MAX, 2 * QE_MAX);
+        d += (x * x) as u32;
+    }
+    d
+}
+
+/// New coordinate of the pixel at region position `q`.
+pub fn correct_pixel(p: &PassParams, t: &LevelTables, coords: &[[i32; 2]], q: [i32; 2]) -> [i32; 2] {
+    let base = p.coord_base as usize;
+    let h = p.spacing;
+    let ns = synthesized_neighbourhood(p, t, coords, q);
+    let current = coords[base + region_index(q, p)];
+    let mut best = current;
+    let mut best_d = u32::MAX;
+    if is_valid(current, p) {
+        best_d = distance(&ns, &t.qe[ex_index(current, p)]);
+    }
+    let km1 = (p.k - 1).max(0) as usize;
+    for dy in -1..=1 {
+        for dx in -1..=1 {
+            let s = coords[base + region_index([q[0] + dx, q[1] + dy], p)];
+            for i in 0..p.k as usize {
+                let o = if i == 0 { [0, 0] } else { let o = t.offsets[ex_index(s, p) * km1 + i - 1]; [o[0] as i32, o[1] as i32] };
+                let raw = [s[0] + o[0] - h * dx, s[1] + o[1] - h * dy];
+                if !is_valid(raw, p) {
+                    continue;
+                }
+                let c = fit_coord(raw, p);
+                let mut d = distance(&ns, &t.qe[ex_index(c, p)]);
+                if i > 0 {
+                    d = d.saturating_add((d >> 4).saturating_mul(p.coherence));
+                }
+                if d < best_d {
+                    best_d = d;
+                    best = c;
+                }
+            }
+        }
+    }
+    best
+}
+
+/// One subpass over the level's region.
+pub fn run(p: &PassParams, t: &LevelTables, coords: &mut [[i32; 2]]) {
+    let start = [(p.parity[0] - p.origin[0]) & 1, (p.parity[1] - p.origin[1]) & 1];
+    let mut y = start[1];
+    while y < p.size[1] {
+        let mut x = start[0];
+        while x < p.size[0] {
+            let c = correct_pixel(p, t, coords, [x, y]);
+            coords[p.coord_base as usize + (y * p.size[0] + x) as usize] = c;
+            x += 2;
+        }
+        y += 2;
+    }
+}

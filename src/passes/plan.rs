@@ -95,9 +95,9 @@ impl SynthPlan {
                 params.passes
             )));
         }
-        if !params.coherence.is_finite() || !(0.0..=4.0).contains(&params.coherence) {
+        if !params.coherence.is_finite() || !(0.0..=1.0).contains(&params.coherence) {
             return Err(Error::InvalidParameter(format!(
-                "coherence {} must be between 0 and 4",
+                "coherence {} must be between 0 and 1",
                 params.coherence
             )));
         }
@@ -179,7 +179,8 @@ impl SynthPlan {
             origin: lp.origin,
             size: [lp.size[0] as i32, lp.size[1] as i32],
             parent_origin: parent.origin,
-            parent_size: [parent.size[0] as i32, parent.size[1] as i32],
+            // Level 0 has no parent: upsample starts it from (0, 0).
+            parent_size: if level > 0 { [parent.size[0] as i32, parent.size[1] as i32] } else { [0, 0] },
             parity: [0, 0],
             spacing: lp.spacing as i32,
             tileable: analysis.tileable as i32,
@@ -199,5 +200,62 @@ impl SynthPlan {
             window_size: [self.params.width as i32, self.params.height as i32],
             _pad: [0, 0],
         }
+    }
+}
+
+/// What a dispatch does.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PassKind {
+    Upsample,
+    Jitter,
+    Correct,
+    Gather,
+}
+
+/// One dispatch of the schedule: the GPU and the CPU mirror run the same list.
+#[derive(Clone, Copy, Debug)]
+pub struct Dispatch {
+    pub kind: PassKind,
+    pub level: usize,
+    pub params: PassParams,
+}
+
+impl Dispatch {
+    /// Threads this dispatch needs (x, y): one per pixel, or per pixel of one parity.
+    pub fn threads(&self) -> [u32; 2] {
+        let p = &self.params;
+        match self.kind {
+            PassKind::Upsample | PassKind::Jitter => [p.size[0] as u32, p.size[1] as u32],
+            PassKind::Correct => [(p.size[0] as u32).div_ceil(2), (p.size[1] as u32).div_ceil(2)],
+            PassKind::Gather => [p.window_size[0] as u32, p.window_size[1] as u32],
+        }
+    }
+}
+
+/// Correction subpass order (absolute parities).
+pub const SUBPASS_ORDER: [[i32; 2]; 4] = [[0, 0], [1, 1], [1, 0], [0, 1]];
+
+impl SynthPlan {
+    /// Every dispatch of the synthesis, in order.
+    pub fn schedule(&self, analysis: &Analysis) -> Vec<Dispatch> {
+        let mut out = Vec::new();
+        for level in 0..self.levels.len() {
+            let params = self.pass_params(analysis, level);
+            out.push(Dispatch { kind: PassKind::Upsample, level, params });
+            if level == 0 {
+                continue;
+            }
+            if params.jitter_amp != 0 {
+                out.push(Dispatch { kind: PassKind::Jitter, level, params });
+            }
+            for _ in 0..self.params.passes {
+                for parity in SUBPASS_ORDER {
+                    out.push(Dispatch { kind: PassKind::Correct, level, params: PassParams { parity, ..params } });
+                }
+            }
+        }
+        let last = self.levels.len() - 1;
+        out.push(Dispatch { kind: PassKind::Gather, level: last, params: self.pass_params(analysis, last) });
+        out
     }
 }

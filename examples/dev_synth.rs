@@ -1,0 +1,32 @@
+// Development driver: analyse an exemplar, synthesize on CPU and GPU, compare, save.
+use std::sync::Arc;
+use std::time::Instant;
+use texsyn::gpu::{synth::GpuSynthesizer, GpuContext};
+
+fn main() -> texsyn::Result<()> {
+    let args: Vec<String> = std::env::args().collect();
+    let ex = texsyn::image_io::load_exemplar(std::path::Path::new(&args[1]))?;
+    let size: u32 = args.get(2).map(|s| s.parse().unwrap()).unwrap_or(128);
+    let t = Instant::now();
+    let a = texsyn::analysis::analyze(&ex, &Default::default(), |_| {})?;
+    eprintln!("analysis {:?} tileable={} levels={}", t.elapsed(), a.tileable, a.levels.len());
+    for (i, l) in a.levels.iter().enumerate() {
+        eprintln!("  level {i}: h={} residual {:.3} runtime {:.3} shift {}", l.spacing, l.residual_variance, l.runtime_residual_variance, l.shift);
+    }
+    let params = texsyn::SynthParams { width: size, height: size, ..Default::default() };
+    let t = Instant::now();
+    let cpu = texsyn::passes::synthesize_cpu(&a, &params)?;
+    eprintln!("cpu {:?}", t.elapsed());
+    let ctx = GpuContext::headless()?;
+    eprintln!("{}", ctx.describe());
+    let g = GpuSynthesizer::new(&ctx, Arc::new(a.clone()))?;
+    let _ = g.synthesize_to_host(&ctx, &params)?;
+    let t = Instant::now();
+    let gpu = g.synthesize_to_host(&ctx, &params)?;
+    eprintln!("gpu {:?}", t.elapsed());
+    let diff = cpu.coords.iter().zip(&gpu.coords).filter(|(a, b)| a != b).count();
+    eprintln!("coords differing: {diff} / {}", cpu.coords.len());
+    let bytes: Vec<u8> = gpu.colors.iter().flatten().copied().collect();
+    texsyn::image_io::save_image_atomic(std::path::Path::new("/tmp/out.png"), size, size, ex.channels, &bytes)?;
+    Ok(())
+}

@@ -1,0 +1,113 @@
+// Shared by every pass; mirrored by src/passes/common.rs. All coordinate and distance
+// arithmetic is integer so the CPU mirror produces the same bytes.
+
+struct Params {
+    ex_size: vec2<i32>,
+    origin: vec2<i32>,
+    size: vec2<i32>,
+    parent_origin: vec2<i32>,
+    parent_size: vec2<i32>,
+    parity: vec2<i32>,
+    spacing: i32,
+    tileable: i32,
+    margin: i32,
+    level: u32,
+    seed: u32,
+    jitter_amp: i32,
+    k: i32,
+    shift: u32,
+    coherence: u32,
+    et_base: u32,
+    off_base: u32,
+    proj_base: u32,
+    coord_base: u32,
+    parent_coord_base: u32,
+    window_offset: vec2<i32>,
+    window_size: vec2<i32>,
+    _pad: vec2<u32>,
+}
+
+@group(0) @binding(0) var<uniform> params: Params;
+// Synthesized exemplar coordinates of every level's region, concatenated.
+@group(0) @binding(1) var<storage, read_write> coords: array<vec2<i32>>;
+// Quantized transformed exemplar Et_l: 8 x i16 per pixel, all levels.
+@group(0) @binding(2) var<storage, read> et: array<vec4<u32>>;
+// Exemplar side of the distance, 3 P N_E >> shift: 8 x i16 per pixel, all levels.
+@group(0) @binding(3) var<storage, read> qe: array<vec4<u32>>;
+// k-coherence offsets: (k-1) x (i16 x, i16 y) per pixel, all levels.
+@group(0) @binding(4) var<storage, read> offsets: array<u32>;
+// Quantized projection P_l: 8 rows x 32 columns as 64 x vec4<i32> per level.
+@group(0) @binding(5) var<storage, read> proj: array<vec4<i32>>;
+// Exemplar colours, RGBA8.
+@group(0) @binding(6) var<storage, read> colors: array<u32>;
+@group(0) @binding(7) var out_color: texture_storage_2d<rgba8unorm, write>;
+
+const QE_MAX: i32 = 8191;
+
+fn hash32(v: u32) -> u32 {
+    var x = v;
+    x ^= x >> 16u;
+    x *= 0x7feb352du;
+    x ^= x >> 15u;
+    x *= 0x846ca68bu;
+    x ^= x >> 16u;
+    return x;
+}
+
+fn hash_pixel(p: vec2<i32>, level: u32, seed: u32) -> vec2<u32> {
+    var h = hash32(seed ^ hash32(level + 0x9e3779b9u));
+    h = hash32(h ^ bitcast<u32>(p.x));
+    let hx = hash32(h ^ (bitcast<u32>(p.y) * 0x2c1b3c6du));
+    let hy = hash32(hx ^ 0x68e31da4u);
+    return vec2<u32>(hx, hy);
+}
+
+fn wrap(c: i32, n: i32) -> i32 {
+    return ((c % n) + n) % n;
+}
+
+fn fit_coord(c: vec2<i32>) -> vec2<i32> {
+    if (params.tileable != 0) {
+        return vec2<i32>(wrap(c.x, params.ex_size.x), wrap(c.y, params.ex_size.y));
+    }
+    return clamp(c, vec2<i32>(params.margin), params.ex_size - vec2<i32>(1 + params.margin));
+}
+
+fn read_coord(c: vec2<i32>) -> vec2<i32> {
+    if (params.tileable != 0) {
+        return vec2<i32>(wrap(c.x, params.ex_size.x), wrap(c.y, params.ex_size.y));
+    }
+    return clamp(c, vec2<i32>(0), params.ex_size - vec2<i32>(1));
+}
+
+fn is_valid(c: vec2<i32>) -> bool {
+    if (params.tileable != 0) {
+        return true;
+    }
+    let hi = params.ex_size - vec2<i32>(1 + params.margin);
+    return all(c >= vec2<i32>(params.margin)) && all(c <= hi);
+}
+
+// Index into `coords` of region pixel q (clamped into the region).
+fn region_index(q: vec2<i32>) -> u32 {
+    let c = clamp(q, vec2<i32>(0), params.size - vec2<i32>(1));
+    return params.coord_base + u32(c.y * params.size.x + c.x);
+}
+
+fn ex_index(c: vec2<i32>) -> u32 {
+    return u32(c.y * params.ex_size.x + c.x);
+}
+
+fn lo16(w: u32) -> i32 {
+    return bitcast<i32>(w << 16u) >> 16u;
+}
+
+fn hi16(w: u32) -> i32 {
+    return bitcast<i32>(w) >> 16u;
+}
+
+// 8 packed i16 as two vec4<i32>.
+fn unpack8(v: vec4<u32>, out_lo: ptr<function, vec4<i32>>, out_hi: ptr<function, vec4<i32>>) {
+    *out_lo = vec4<i32>(lo16(v.x), hi16(v.x), lo16(v.y), hi16(v.y));
+    *out_hi = vec4<i32>(lo16(v.z), hi16(v.z), lo16(v.w), hi16(v.w));
+}

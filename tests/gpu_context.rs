@@ -1,0 +1,194 @@
+//! Device creation and error handling on whatever adapter the machine has (lavapipe in
+//! CI). Adapter choice is tested through `GpuContext::with_options`, not environment
+//! variables, so the tests cannot race each other.
+
+use texsyn::gpu::context::{GpuContext, GpuOptions};
+use texsyn::Error;
+
+fn context() -> GpuContext {
+    match GpuContext::headless() {
+        Ok(ctx) => ctx,
+        Err(e) => panic!("no GPU context (install mesa-vulkan-drivers for lavapipe): {e}"),
+    }
+}
+
+/// A buffer descriptor wgpu rejects: MAP_READ may only be combined with COPY_DST.
+fn invalid_buffer() -> wgpu::BufferDescriptor<'static> {
+    wgpu::BufferDescriptor {
+        label: Some("invalid"),
+        size: 16,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::STORAGE,
+        mapped_at_creation: false,
+    }
+}
+
+#[test]
+fn headless_creates_a_device_with_the_adapter_limits() {
+    let ctx = context();
+    let description = ctx.describe();
+    println!("adapter: {description}");
+    assert!(
+        description.contains(&ctx.adapter_info.name),
+        "{description}"
+    );
+    assert!(description.contains(&format!("{:?}", ctx.adapter_info.backend)));
+
+    // The device was requested with the adapter's limits, not the WebGPU defaults.
+    let limits = ctx.limits();
+    println!(
+        "max_buffer_size {} max_storage_buffer_binding_size {} max_texture_dimension_2d {}",
+        limits.max_buffer_size,
+        limits.max_storage_buffer_binding_size,
+        limits.max_texture_dimension_2d
+    );
+    assert!(limits.max_compute_invocations_per_workgroup >= 64);
+    assert!(limits.max_texture_dimension_2d >= 2048);
+
+    // A valid operation inside a scope succeeds and returns its value.
+    let buffer = ctx
+        .scoped(|| {
+            ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("ok"),
+                size: 256,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            })
+        })
+        .expect("valid buffer");
+    assert_eq!(buffer.size(), 256);
+    ctx.wait_idle().expect("wait_idle");
+    ctx.take_uncaptured_errors().expect("no stray errors");
+}
+
+#[test]
+fn scoped_turns_validation_errors_into_gpu_errors() {
+    let ctx = context();
+    let result = ctx.scoped(|| ctx.device.create_buffer(&invalid_buffer()));
+    match result {
+        Err(Error::Gpu(message)) => {
+            println!("{message}");
+            assert!(message.contains("validation"), "{message}");
+        }
+        Err(other) => panic!("expected Error::Gpu, got {other:?}"),
+        Ok(_) => panic!("an invalid buffer was accepted"),
+    }
+    // The scope caught it: nothing leaked to the uncaptured handler.
+    ctx.take_uncaptured_errors().expect("no stray errors");
+
+    // Nested scopes and later calls still work.
+    let value = ctx.scoped(|| ctx.scoped(|| 7).unwrap()).unwrap();
+    assert_eq!(value, 7);
+}
+
+#[test]
+fn uncaptured_errors_are_collected_instead_of_panicking() {
+    let ctx = context();
+    let _buffer = ctx.device.create_buffer(&invalid_buffer());
+    match ctx.take_uncaptured_errors() {
+        Err(Error::Gpu(message)) => assert!(message.contains("validation"), "{message}"),
+        other => panic!("expected the uncaptured error, got {other:?}"),
+    }
+    // Taken: the next call is clean.
+    ctx.take_uncaptured_errors().expect("errors were taken");
+}
+
+#[test]
+fn non_matching_adapter_is_a_helpful_no_adapter_error() {
+    let found = context().adapter_info.name;
+    let result = GpuContext::with_options(GpuOptions {
+        backend: None,
+        adapter: Some("no-such-adapter-0xdeadbeef".to_string()),
+    });
+    match result {
+        Err(Error::NoAdapter(message)) => {
+            println!("{message}");
+            assert!(message.contains("no-such-adapter-0xdeadbeef"), "{message}");
+            assert!(message.contains("TEXSYN_ADAPTER"), "{message}");
+            // The adapters that do exist are listed, with their indices.
+            assert!(message.contains(&found), "{message}");
+            assert!(message.contains("[0]"), "{message}");
+            let full = Error::NoAdapter(message).to_string();
+            assert!(full.contains("lavapipe"), "{full}");
+        }
+        Err(other) => panic!("expected Error::NoAdapter, got {other:?}"),
+        Ok(ctx) => panic!("matched {}", ctx.describe()),
+    }
+
+    // An index past the end is no match either.
+    let result = GpuContext::with_options(GpuOptions {
+        backend: None,
+        adapter: Some("999".to_string()),
+    });
+    assert!(matches!(result, Err(Error::NoAdapter(_))), "{result:?}");
+}
+
+#[test]
+fn adapter_by_name_and_index() {
+    let expected = context().adapter_info;
+    // A case-changed part of the default adapter's name picks the same adapter.
+    let part: String = expected
+        .name
+        .chars()
+        .take(4)
+        .collect::<String>()
+        .to_uppercase();
+    let ctx = GpuContext::with_options(GpuOptions {
+        backend: Some(format!("{:?}", expected.backend).to_lowercase()),
+        adapter: Some(part),
+    })
+    .expect("adapter by name");
+    assert_eq!(ctx.adapter_info.name, expected.name);
+
+    let ctx = GpuContext::with_options(GpuOptions {
+        backend: Some(format!("{:?}", expected.backend)),
+        adapter: Some("0".to_string()),
+    })
+    .expect("adapter by index");
+    println!("[0] {}", ctx.describe());
+}
+
+#[test]
+fn unknown_backend_is_an_invalid_parameter() {
+    let result = GpuContext::with_options(GpuOptions {
+        backend: Some("glide".to_string()),
+        adapter: None,
+    });
+    match result {
+        Err(Error::InvalidParameter(message)) => assert!(message.contains("glide"), "{message}"),
+        other => panic!("expected InvalidParameter, got {other:?}"),
+    }
+}
+
+#[test]
+fn from_device_wraps_a_callers_device() {
+    let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
+        backends: wgpu::Backends::PRIMARY,
+        ..wgpu::InstanceDescriptor::new_without_display_handle()
+    });
+    let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+        power_preference: wgpu::PowerPreference::HighPerformance,
+        force_fallback_adapter: false,
+        compatible_surface: None,
+        ..Default::default()
+    }))
+    .expect("an adapter");
+    let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+        label: Some("caller's device"),
+        ..Default::default()
+    }))
+    .expect("a device");
+
+    let ctx = GpuContext::from_device(device, queue);
+    println!("from_device: {}", ctx.describe());
+    assert_eq!(ctx.adapter_info, adapter.get_info());
+    // The caller asked for default limits; the context reports the device's.
+    assert_eq!(
+        ctx.limits().max_buffer_size,
+        wgpu::Limits::default().max_buffer_size
+    );
+    assert!(matches!(
+        ctx.scoped(|| ctx.device.create_buffer(&invalid_buffer())),
+        Err(Error::Gpu(_))
+    ));
+    ctx.wait_idle().unwrap();
+}
