@@ -386,11 +386,37 @@ fn encode_err(path: &Path, e: image::ImageError) -> Error {
     }
 }
 
+/// Encodes `img`; if the encoder rejects its pixel layout (e.g. GIF and grey), retries with
+/// the nearest layouts that keep the most information: RGB8, RGBA8, then float RGB.
+fn encode_with_fallback(img: &DynamicImage, format: ImageFormat) -> image::ImageResult<Vec<u8>> {
+    let encode = |img: &DynamicImage| {
+        let mut buf = Cursor::new(Vec::new());
+        img.write_to(&mut buf, format).map(|()| buf.into_inner())
+    };
+    let first = match encode(img) {
+        Err(e @ image::ImageError::Unsupported(_)) => e,
+        other => return other,
+    };
+    let fallbacks = [
+        DynamicImage::ImageRgb8(img.to_rgb8()),
+        DynamicImage::ImageRgba8(img.to_rgba8()),
+        DynamicImage::ImageRgb32F(img.to_rgb32f()),
+    ];
+    for alt in fallbacks.iter().filter(|a| a.color() != img.color()) {
+        match encode(alt) {
+            Err(image::ImageError::Unsupported(_)) => continue,
+            other => return other,
+        }
+    }
+    Err(first)
+}
+
 /// Writes `rgba8` (`width * height * 4` bytes, row-major RGBA) atomically as a grey
 /// (`channels == 1`, the R channel), RGB (3) or RGBA (4) image. The format comes from the
 /// extension (see [`SUPPORTED_SAVE_EXTENSIONS`]; no extension: PNG); formats that lack
 /// the requested layout get the nearest one the encoder supports (JPEG drops alpha,
-/// HDR/EXR are written as float).
+/// HDR/EXR are written as float, `.pgm` is always grey (luminance) and `.ppm` always
+/// RGB).
 pub fn save_image_atomic(
     path: &Path,
     width: u32,
@@ -422,10 +448,16 @@ pub fn save_image_atomic(
             )))
         }
     };
-    let mut buf = Cursor::new(Vec::new());
-    img.write_to(&mut buf, format)
-        .map_err(|e| encode_err(path, e))?;
-    let bytes = buf.into_inner();
+    // The PNM family shares one `ImageFormat`; honour the specific extensions.
+    let ext = path
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase());
+    let img = match ext.as_deref() {
+        Some("pgm") if channels != 1 => DynamicImage::ImageLuma8(img.to_luma8()),
+        Some("ppm") if channels != 3 => DynamicImage::ImageRgb8(img.to_rgb8()),
+        _ => img,
+    };
+    let bytes = encode_with_fallback(&img, format).map_err(|e| encode_err(path, e))?;
     write_atomic(path, |w| {
         w.write_all(&bytes).map_err(|e| Error::Write {
             path: path.to_path_buf(),

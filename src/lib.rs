@@ -10,7 +10,10 @@ pub mod gpu;
 pub mod image_io;
 pub mod passes;
 pub mod quality;
+pub mod session;
+mod shader_preprocess;
 
 pub use analysis::{Analysis, AnalysisOptions, Exemplar};
 pub use error::{Error, Result};
-pub use passes::SynthParams;
+pub use passes::{SynthParams, Synthesis};
+pub use session::{Session, SessionBuilder, Texture};

@@ -1,1 +1,7 @@
-fn main() {}
+//! The `texsyn` command line; see `texsyn --help` and the `cli` module.
+
+mod cli;
+
+fn main() {
+    std::process::exit(cli::main());
+}

@@ -192,3 +192,35 @@ fn from_device_wraps_a_callers_device() {
     ));
     ctx.wait_idle().unwrap();
 }
+
+#[test]
+fn every_embedded_shader_builds_a_compute_pipeline() {
+    let ctx = context();
+    for shader in texsyn::gpu::shaders::ALL {
+        let pipeline = ctx.scoped(|| {
+            let module = ctx
+                .device
+                .create_shader_module(wgpu::ShaderModuleDescriptor {
+                    label: Some(shader.name),
+                    source: wgpu::ShaderSource::Wgsl(shader.source.into()),
+                });
+            ctx.device
+                .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                    label: Some(shader.name),
+                    layout: None,
+                    module: &module,
+                    entry_point: Some(shader.entry_point),
+                    compilation_options: Default::default(),
+                    cache: None,
+                })
+        });
+        if let Err(e) = pipeline {
+            panic!("{} ({}): {e}", shader.file, shader.name);
+        }
+        assert!(shader.workgroup_size.iter().all(|&n| n >= 1));
+        println!(
+            "{}: {} {:?} ok",
+            shader.file, shader.entry_point, shader.workgroup_size
+        );
+    }
+}

@@ -8,7 +8,7 @@ use super::par_ranges;
 
 /// Bounded kd-tree search: the similarity set need not be exact, and this keeps the
 /// analysis of a 256x256 exemplar well under a second per level.
-const MAX_CHECKS: usize = 192;
+const MAX_CHECKS: usize = 128;
 
 pub struct SimilarityQuery<'a> {
     pub features: &'a [f32],

@@ -137,10 +137,6 @@ impl Best {
         self.items.insert(pos, (d, i));
         self.items.truncate(self.k);
     }
-
-    fn full(&self) -> bool {
-        self.items.len() >= self.k
-    }
 }
 
 /// Whether a subtree with lower bound `rd` may hold something better than `bound`.
@@ -258,7 +254,13 @@ impl KdTree {
             self.search_exact(0, 0.0, &mut off, query, &mut best, &accept);
         } else {
             let mut scratch = SCRATCH.with(|s| std::mem::take(&mut *s.borrow_mut()));
-            self.search_bbf(query, max_checks, &mut best, &accept, &mut scratch);
+            let visit = |i: u32, d: f32| {
+                if best.admits(d, i) && accept(i) {
+                    best.insert(d, i);
+                }
+                best.bound()
+            };
+            self.search_bbf(query, f32::INFINITY, max_checks, visit, &mut scratch);
             SCRATCH.with(|s| *s.borrow_mut() = scratch);
         }
         best.items
@@ -315,15 +317,55 @@ impl KdTree {
         }
     }
 
+    /// Best-bin-first traversal: bins in ascending order of their lower bound, points
+    /// of a bin in storage order. `visit(index, d2)` is called for each point whose
+    /// squared distance `d2` is `<= bound`, where `bound` is the value given, then the
+    /// value the last `visit` returned. Stops when no remaining bin can hold a point
+    /// within the bound, or once `max_checks` points have been examined (whole leaves
+    /// at a time) and the bound is finite (`max_checks == 0`: no limit).
+    ///
+    /// With a `visit` that computes a more expensive distance for which the tree-space
+    /// distance is a lower bound (e.g. full-dimensional distances over PCA-projected
+    /// points) and returns the best such distance so far, this is an exact
+    /// nearest-neighbour search in that distance when `max_checks == 0`.
+    ///
+    /// # Panics
+    /// If `query.len() != self.dim()` (on a non-empty tree).
+    pub fn search(
+        &self,
+        query: &[f32],
+        bound: f32,
+        max_checks: usize,
+        visit: impl FnMut(u32, f32) -> f32,
+    ) {
+        if self.nodes.is_empty() {
+            return;
+        }
+        assert_eq!(
+            query.len(),
+            self.dim,
+            "KdTree::search: query has the wrong dimension"
+        );
+        let max_checks = if max_checks == 0 {
+            usize::MAX
+        } else {
+            max_checks
+        };
+        let mut scratch = SCRATCH.with(|s| std::mem::take(&mut *s.borrow_mut()));
+        self.search_bbf(query, bound, max_checks, visit, &mut scratch);
+        SCRATCH.with(|s| *s.borrow_mut() = scratch);
+    }
+
     fn search_bbf(
         &self,
         query: &[f32],
+        bound: f32,
         max_checks: usize,
-        best: &mut Best,
-        accept: &impl Fn(u32) -> bool,
+        mut visit: impl FnMut(u32, f32) -> f32,
         s: &mut Scratch,
     ) {
         let dim = self.dim;
+        let mut bound = bound;
         s.heap.clear();
         s.offsets.clear();
         s.offsets.resize(dim, 0.0);
@@ -334,10 +376,10 @@ impl KdTree {
         let mut checks = 0usize;
         while let Some(std::cmp::Reverse((key, slot))) = s.heap.pop() {
             let rd = f32::from_bits((key >> 32) as u32);
-            if !may_contain(rd, best.bound()) {
+            if !may_contain(rd, bound) {
                 break; // nothing left can improve the result: it is exact
             }
-            if checks >= max_checks && best.full() {
+            if checks >= max_checks && bound < f32::INFINITY {
                 break;
             }
             let mut node = (key & 0xffff_ffff) as u32;
@@ -348,7 +390,13 @@ impl KdTree {
             loop {
                 let nd = self.nodes[node as usize];
                 if nd.split_dim == LEAF {
-                    self.scan_leaf(nd.a as usize, nd.b as usize, query, best, accept);
+                    for r in nd.a as usize..nd.b as usize {
+                        let p = &self.points[r * dim..(r + 1) * dim];
+                        let d = bounded_distance(query, p, bound);
+                        if d <= bound {
+                            bound = visit(self.index[r], d);
+                        }
+                    }
                     checks += (nd.b - nd.a) as usize;
                     break;
                 }
@@ -360,7 +408,7 @@ impl KdTree {
                     (nd.b, nd.a)
                 };
                 let far_rd = (rd - off[d] * off[d] + diff * diff).max(0.0);
-                if may_contain(far_rd, best.bound()) {
+                if may_contain(far_rd, bound) {
                     let new_slot = s.offsets.len() / dim;
                     s.offsets.extend_from_slice(&off);
                     s.offsets[new_slot * dim + d] = diff;
@@ -524,6 +572,61 @@ mod tests {
                 assert_eq!(tree.knn(q, 3, 0, acc), brute(&pts, dim, q, 3, acc));
             }
         }
+    }
+
+    #[test]
+    fn search_with_refined_distance_is_exact() {
+        // Tree over the first 4 of 10 coordinates (a lower bound of the full distance);
+        // the visitor refines with the full distance.
+        let (n, full_dim, dim) = (3000usize, 10usize, 4usize);
+        let full = random_points(n, full_dim, 21);
+        let proj: Vec<f32> = full.chunks_exact(full_dim).flat_map(|p| p[..dim].to_vec()).collect();
+        let tree = KdTree::build(proj, dim);
+        let queries = random_points(100, full_dim, 22);
+        let mut hits = 0;
+        for q in queries.chunks_exact(full_dim) {
+            let expect = brute(&full, full_dim, q, 1, |_| true)[0];
+            for &checks in &[0usize, 48] {
+                let mut best = (f32::INFINITY, u32::MAX);
+                let mut visited = 0;
+                tree.search(&q[..dim], f32::INFINITY, checks, |i, d| {
+                    visited += 1;
+                    let p = &full[i as usize * full_dim..(i as usize + 1) * full_dim];
+                    let fd = squared_distance(q, p);
+                    assert!(d <= fd * 1.0001 + 1e-6);
+                    if before(fd, i, best) {
+                        best = (fd, i);
+                    }
+                    best.0
+                });
+                assert!(visited < n);
+                if checks == 0 {
+                    assert_eq!(best, expect);
+                } else {
+                    hits += (best == expect) as usize;
+                }
+            }
+        }
+        assert!(hits >= 50, "{hits}/100");
+        // A finite initial bound limits the visit to points within it.
+        let q = &queries[..dim];
+        let mut seen = Vec::new();
+        tree.search(q, 0.01, 0, |i, d| {
+            assert!(d <= 0.01);
+            seen.push(i);
+            0.01
+        });
+        seen.sort();
+        let inside: Vec<u32> = tree_points_within(&full, full_dim, dim, q, 0.01);
+        assert_eq!(seen, inside);
+    }
+
+    fn tree_points_within(full: &[f32], full_dim: usize, dim: usize, q: &[f32], r: f32) -> Vec<u32> {
+        full.chunks_exact(full_dim)
+            .enumerate()
+            .filter(|(_, p)| squared_distance(&p[..dim], q) <= r)
+            .map(|(i, _)| i as u32)
+            .collect()
     }
 
     #[test]

@@ -230,8 +230,11 @@ pub fn analyze(ex: &Exemplar, opts: &AnalysisOptions, mut progress: impl FnMut(P
     for (l, plane) in stack.iter().enumerate() {
         let spacing = 1u32 << (top - l as u32);
         let margin = level_margin(ex.width, ex.height, spacing, tileable);
+        let t0 = std::time::Instant::now();
         let (et, residual) = appearance::transformed_exemplar(plane, spacing, tileable, threads);
+        let t1 = std::time::Instant::now();
         let q = appearance::quantize_level(&et, ex.width, ex.height, spacing, tileable, threads);
+        let t2 = std::time::Instant::now();
         let exclusion = opts.exclusion_radius.max(spacing).min(ex.width.min(ex.height) / 4);
         let offsets = kcoherence::similarity_offsets(
             &kcoherence::SimilarityQuery {
@@ -246,6 +249,9 @@ pub fn analyze(ex: &Exemplar, opts: &AnalysisOptions, mut progress: impl FnMut(P
             },
             threads,
         );
+        if std::env::var_os("TEXSYN_PROFILE").is_some() {
+            eprintln!("level {l}: appearance {:?} runtime {:?} kcoherence {:?}", t1 - t0, t2 - t1, t2.elapsed());
+        }
         levels.push(LevelData {
             spacing,
             margin,

@@ -334,16 +334,21 @@ fn no_adapter_message(
     seen: &[wgpu::AdapterInfo],
 ) -> String {
     let backends = backend.unwrap_or("vulkan/metal/dx12, then gl");
-    let mut message = match selector {
-        Some(sel) => format!(
+    let mut message = match (selector, seen.is_empty()) {
+        (Some(sel), _) => format!(
             "no adapter matches \"{sel}\" ({ADAPTER_ENV} or the adapter option takes a \
              case-insensitive part of an adapter name, or its index in the list below)"
         ),
-        None => "no adapter with compute shader support".to_string(),
+        (None, true) => "no adapters found".to_string(),
+        (None, false) => "no adapter supports compute shaders".to_string(),
     };
     let _ = write!(message, "; backends tried: {backends}");
     if seen.is_empty() {
-        message.push_str("; no adapters were found at all");
+        let _ = write!(
+            message,
+            "; {ADAPTER_ENV} has nothing to choose from; \
+             try another backend with {BACKEND_ENV}=vulkan|gl|metal|dx12|all"
+        );
     } else {
         message.push_str("; adapters found:");
         for (i, info) in seen.iter().enumerate() {
@@ -384,12 +389,39 @@ fn describe_wgpu_error(error: &wgpu::Error) -> String {
     match error {
         wgpu::Error::OutOfMemory { source } => format!("out of GPU memory: {source}"),
         wgpu::Error::Validation { description, .. } => {
-            format!("validation error: {}", description.trim_end())
+            format!("validation error: {}", tidy_description(description))
         }
         wgpu::Error::Internal { description, .. } => {
-            format!("internal error: {}", description.trim_end())
+            format!("internal error: {}", tidy_description(description))
         }
     }
+}
+
+/// wgpu-core's descriptions read "Validation Error\n\nCaused by:\n  In Device::...\n
+/// <details>"; drop the generic header and the indentation, keep the lines (shader
+/// compilation errors carry a source excerpt that needs them).
+fn tidy_description(description: &str) -> String {
+    let mut lines: Vec<&str> = description.trim_end().lines().collect();
+    let header = lines.iter().position(|l| l.trim() == "Caused by:");
+    if let Some(i) = header {
+        if lines[..i]
+            .iter()
+            .all(|l| l.trim().is_empty() || l.trim().ends_with("Error"))
+        {
+            lines.drain(..=i);
+        }
+    }
+    let indent = lines
+        .iter()
+        .filter(|l| !l.trim().is_empty())
+        .map(|l| l.len() - l.trim_start().len())
+        .min()
+        .unwrap_or(0);
+    lines
+        .iter()
+        .map(|l| l.get(indent..).unwrap_or(l.trim_start()))
+        .collect::<Vec<_>>()
+        .join("\n")
 }
 
 /// An error and its causes, `a: b: c`.

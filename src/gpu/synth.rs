@@ -220,7 +220,7 @@ impl GpuSynthesizer {
             let coords = ctx.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("texsyn coords"),
                 size: (plan.coord_count * 8).max(16),
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             });
             *guard = Some(Scratch { coord_count: plan.coord_count, coords });

@@ -204,7 +204,7 @@ impl SynthPlan {
 }
 
 /// What a dispatch does.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum PassKind {
     Upsample,
     Jitter,

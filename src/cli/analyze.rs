@@ -1,0 +1,95 @@
+//! `texsyn analyze`: analyse an exemplar once and save the result for `synth` / `bench`.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use clap::Args;
+
+use texsyn::analysis::{self, Analysis, AnalysisOptions};
+
+use super::{channels_name, check_output_dir, fmt_bytes, fmt_duration, CliResult, TileArgs, Ui};
+
+/// Analyse an exemplar image and save the analysis file (skips the analysis in synth)
+#[derive(Args, Debug)]
+#[command(
+    long_about = "Analyse an exemplar image and save the analysis file.\n\n\
+                  The analysis (Gaussian stack, PCA-reduced appearance vectors, k-coherence \
+                  similarity sets) is what synthesis needs; `texsyn synth` and `texsyn bench` \
+                  accept the saved file in place of the image and then skip the analysis."
+)]
+pub struct AnalyzeArgs {
+    /// Exemplar image (PNG, JPEG, BMP, TGA, TIFF, WebP, GIF, PNM, HDR, EXR; at least 16x16)
+    pub exemplar: PathBuf,
+
+    /// Analysis file to write (written atomically, only once the analysis succeeded)
+    #[arg(short, long, value_name = "FILE")]
+    pub output: PathBuf,
+
+    /// Similarity-set size, including the pixel itself (1..=8)
+    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u32).range(1..=analysis::MAX_K as i64))]
+    pub k: u32,
+
+    #[command(flatten)]
+    pub tile: TileArgs,
+
+    /// Similarity-set members lie at least this many pixels from the pixel itself
+    #[arg(long, value_name = "R", default_value_t = AnalysisOptions::default().exclusion_radius)]
+    pub exclusion: u32,
+
+    /// Worker threads (0 = all cores)
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    pub threads: usize,
+}
+
+pub fn run(ui: &Ui, args: AnalyzeArgs) -> CliResult<()> {
+    check_output_dir(&args.output)?;
+    let options = AnalysisOptions { k: args.k, tileable: args.tile.get(), exclusion_radius: args.exclusion, threads: args.threads };
+
+    let t0 = Instant::now();
+    let exemplar = texsyn::image_io::load_exemplar(&args.exemplar)?;
+    let load_time = t0.elapsed();
+
+    let t1 = Instant::now();
+    let analysis = analysis::analyze(&exemplar, &options, ui.analysis_progress())?;
+    let analysis_time = t1.elapsed();
+
+    let t2 = Instant::now();
+    analysis.save(&args.output)?;
+    let save_time = t2.elapsed();
+
+    let size = std::fs::metadata(&args.output).map(|m| m.len()).unwrap_or(0);
+    print_summary(ui, &args, &options, &analysis);
+    ui.info(format!(
+        "time: load {}, analysis {}, save {}; wrote {} ({})",
+        fmt_duration(load_time),
+        fmt_duration(analysis_time),
+        fmt_duration(save_time),
+        args.output.display(),
+        fmt_bytes(size)
+    ));
+    Ok(())
+}
+
+fn print_summary(ui: &Ui, args: &AnalyzeArgs, options: &AnalysisOptions, a: &Analysis) {
+    if ui.quiet {
+        return;
+    }
+    ui.info(format!("exemplar: {}, {}x{} {}", args.exemplar.display(), a.width, a.height, channels_name(a.channels)));
+    let how = if options.tileable.is_some() { "forced" } else { "detected" };
+    ui.info(format!("tileable: {} ({how})", if a.tileable { "yes" } else { "no" }));
+    ui.info(format!("k: {}, exclusion radius: {}", a.k, options.exclusion_radius));
+    print_levels(ui, a);
+}
+
+/// The per-level table: spacing, margin and the PCA residual variances.
+pub fn print_levels(ui: &Ui, a: &Analysis) {
+    ui.info(format!("levels: {} (0 = coarsest)", a.levels.len()));
+    ui.info("PCA residual variance (fraction of variance not kept in 8D):");
+    ui.info("  level  spacing  margin  appearance  runtime");
+    for (l, lv) in a.levels.iter().enumerate() {
+        ui.info(format!(
+            "  {:>5}  {:>7}  {:>6}  {:>10.5}  {:>7.5}",
+            l, lv.spacing, lv.margin, lv.residual_variance, lv.runtime_residual_variance
+        ));
+    }
+}

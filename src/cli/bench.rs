@@ -1,0 +1,182 @@
+//! `texsyn bench`: analysis time and GPU synthesis timings per output size.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use clap::Args;
+
+use texsyn::analysis::{self, Analysis, AnalysisOptions};
+use texsyn::gpu::synth::GpuSynthesizer;
+use texsyn::gpu::GpuContext;
+use texsyn::passes::SynthParams;
+
+use super::{channels_name, check_output_size, fmt_duration, parse_sizes, CliResult, Ui};
+
+/// Exemplars up to this many pixels are analysed several times and the median reported.
+const REPEAT_ANALYSIS_PIXELS: u64 = 256 * 256;
+const ANALYSIS_RUNS: usize = 3;
+
+/// Time the analysis and the GPU synthesis at several output sizes; prints a table
+#[derive(Args, Debug)]
+#[command(long_about = "Time the analysis and the GPU synthesis at several output sizes; prints a table on stdout.\n\n\
+                  For each size: GPU synthesis time (submit + wait for the device, nothing read \
+                  back) after the warm-up runs, as median, min and max of --runs runs, and \
+                  output pixels per second from the median; then the median of as many whole \
+                  syntheses including the read-back of colours and coordinates to the host. A \
+                  size the device cannot handle shows its error in its row.")]
+pub struct BenchArgs {
+    /// Exemplar image, or an analysis file (then the load time is reported instead)
+    pub exemplar: PathBuf,
+
+    /// Output sizes, comma-separated, each N or WxH
+    #[arg(long, value_name = "N[xM],...", default_value = "256,512,1024,2048", value_parser = parse_sizes)]
+    pub sizes: Vec<[u32; 2]>,
+
+    /// Timed runs per size (at least 1)
+    #[arg(long, value_name = "N", default_value_t = 7, value_parser = clap::value_parser!(u32).range(1..=10_000))]
+    pub runs: u32,
+
+    /// Untimed warm-up runs per size
+    #[arg(long, value_name = "W", default_value_t = 2)]
+    pub warmup: u32,
+
+    /// Random seed of the syntheses
+    #[arg(long, value_name = "S", default_value_t = SynthParams::default().seed)]
+    pub seed: u32,
+
+    /// Correction passes per level (0..=16)
+    #[arg(long, value_name = "P", default_value_t = SynthParams::default().passes,
+          value_parser = clap::value_parser!(u32).range(0..=16))]
+    pub passes: u32,
+}
+
+struct Stats {
+    median: Duration,
+    min: Duration,
+    max: Duration,
+}
+
+fn stats(mut times: Vec<Duration>) -> Stats {
+    times.sort();
+    let n = times.len();
+    let median = if n % 2 == 1 { times[n / 2] } else { (times[n / 2 - 1] + times[n / 2]) / 2 };
+    Stats { median, min: times[0], max: times[n - 1] }
+}
+
+/// Runs `f` `warmup` times untimed, then `runs` times timed.
+fn time_runs(warmup: u32, runs: u32, mut f: impl FnMut() -> texsyn::Result<()>) -> texsyn::Result<Stats> {
+    for _ in 0..warmup {
+        f()?;
+    }
+    let mut times = Vec::with_capacity(runs as usize);
+    for _ in 0..runs {
+        let t = Instant::now();
+        f()?;
+        times.push(t.elapsed());
+    }
+    Ok(stats(times))
+}
+
+pub fn run(ui: &Ui, args: BenchArgs) -> CliResult<()> {
+    let ctx = GpuContext::headless()?;
+    let from_file = texsyn::session::is_analysis_file(&args.exemplar)?;
+    let (analysis, analysis_line) = if from_file {
+        let t = Instant::now();
+        let a = Analysis::load(&args.exemplar)?;
+        let line = format!("analysis: loaded from file in {} (1 run)", fmt_duration(t.elapsed()));
+        (a, line)
+    } else {
+        let ex = texsyn::image_io::load_exemplar(&args.exemplar)?;
+        let opts = AnalysisOptions::default();
+        let runs = if ex.width as u64 * ex.height as u64 <= REPEAT_ANALYSIS_PIXELS { ANALYSIS_RUNS } else { 1 };
+        let mut times = Vec::new();
+        let mut result = None;
+        for i in 0..runs {
+            ui.progress(format!("analysis run {}/{runs}", i + 1));
+            let t = Instant::now();
+            let a = analysis::analyze(&ex, &opts, |_| {})?;
+            times.push(t.elapsed());
+            result = Some(a);
+        }
+        ui.end_progress();
+        let s = stats(times);
+        let line = if runs == 1 {
+            format!("analysis: {} (1 run, {} threads)", fmt_duration(s.median), threads())
+        } else {
+            format!(
+                "analysis: {} (median of {runs} runs, min {}, max {}; {} threads)",
+                fmt_duration(s.median),
+                fmt_duration(s.min),
+                fmt_duration(s.max),
+                threads()
+            )
+        };
+        (result.expect("at least one run"), line)
+    };
+
+    let t = Instant::now();
+    let summary = format!(
+        "exemplar: {} ({}x{} {}, {} levels, k = {}, {}tileable)",
+        args.exemplar.display(),
+        analysis.width,
+        analysis.height,
+        channels_name(analysis.channels),
+        analysis.levels.len(),
+        analysis.k,
+        if analysis.tileable { "" } else { "not " }
+    );
+    let synthesizer = GpuSynthesizer::new(&ctx, Arc::new(analysis))?;
+    let upload = t.elapsed();
+
+    ui.out(format!("adapter: {}", ctx.describe()))?;
+    ui.out(summary)?;
+    ui.out(analysis_line)?;
+    ui.out(format!("GPU upload + pipelines: {}", fmt_duration(upload)))?;
+    ui.out(format!(
+        "synthesis: {} passes, seed {}; {} warm-up + {} timed runs per size; GPU = submit + wait, no read-back",
+        args.passes, args.seed, args.warmup, args.runs
+    ))?;
+    ui.out("")?;
+    ui.out(format!(
+        "{:<11} {:>11} {:>11} {:>11} {:>11} {:>16}",
+        "size", "GPU median", "GPU min", "GPU max", "Mpixel/s", "incl. read-back"
+    ))?;
+
+    for &[w, h] in &args.sizes {
+        let size = format!("{w}x{h}");
+        ui.progress(format!("benchmarking {size}"));
+        let params = SynthParams { width: w, height: h, seed: args.seed, passes: args.passes, ..SynthParams::default() };
+        let row = check_output_size(&ctx, w, h)
+            .and_then(|()| {
+                let gpu = time_runs(args.warmup, args.runs, || {
+                    synthesizer.synthesize(&ctx, &params)?;
+                    ctx.take_uncaptured_errors()
+                })?;
+                let whole = time_runs(args.warmup.min(1), args.runs, || {
+                    synthesizer.synthesize_to_host(&ctx, &params)?;
+                    ctx.take_uncaptured_errors()
+                })?;
+                Ok((gpu, whole))
+            });
+        ui.end_progress();
+        let line = match row {
+            Ok((gpu, whole)) => format!(
+                "{:<11} {:>11} {:>11} {:>11} {:>11.2} {:>16}",
+                size,
+                fmt_duration(gpu.median),
+                fmt_duration(gpu.min),
+                fmt_duration(gpu.max),
+                w as f64 * h as f64 / gpu.median.as_secs_f64() / 1e6,
+                fmt_duration(whole.median)
+            ),
+            Err(e) => format!("{size:<11} error: {e}"),
+        };
+        ui.out(line)?;
+    }
+    Ok(())
+}
+
+fn threads() -> usize {
+    std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1)
+}

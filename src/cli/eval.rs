@@ -1,0 +1,88 @@
+//! `texsyn eval`: quality figures of a synthesized image against its exemplar, as JSON.
+
+use std::path::{Path, PathBuf};
+
+use clap::Args;
+
+use texsyn::quality::{self, CoordMap, FloatImage};
+
+use super::{fail, CliResult, TileArgs, Ui};
+
+/// Print quality figures of a synthesized image against its exemplar as JSON on stdout
+#[derive(Args, Debug)]
+#[command(long_about = "Print quality figures of a synthesized image against its exemplar as JSON on stdout.\n\n\
+                  texture_energy: mean squared difference of each 7x7 output neighbourhood to the \
+                  nearest exemplar neighbourhood, at full, half and quarter resolution (null \
+                  where the images are too small); histogram_emd: earth mover's distance \
+                  between the colour histograms, per channel and mean; verbatim (with \
+                  --coords): how much of the output is verbatim copy of the exemplar \
+                  (coherent neighbour pairs, largest copied region), else null. Lower \
+                  energy and EMD are better.")]
+pub struct EvalArgs {
+    /// The exemplar image (not an analysis file: the figures compare pixels)
+    pub exemplar: PathBuf,
+
+    /// The synthesized image
+    pub image: PathBuf,
+
+    /// Coordinate map written by `texsyn synth --coords-out`, for the verbatim-copy figures
+    #[arg(long, value_name = "FILE.exr")]
+    pub coords: Option<PathBuf>,
+
+    /// Whether exemplar coordinates wrap around (for --coords); default: detected from
+    /// the exemplar's seams, as the analysis does
+    #[command(flatten)]
+    pub tile: TileArgs,
+}
+
+pub fn run(ui: &Ui, args: EvalArgs) -> CliResult<()> {
+    if texsyn::session::is_analysis_file(&args.exemplar)? {
+        return Err(fail(format!(
+            "{} is an analysis file; eval needs the exemplar image itself (the one given to `texsyn analyze`)",
+            args.exemplar.display()
+        )));
+    }
+    let exemplar = texsyn::image_io::load_exemplar(&args.exemplar)?;
+    let output = load_image(&args.image)?;
+
+    let coords = match &args.coords {
+        None => None,
+        Some(path) => {
+            let (w, h, c) = texsyn::image_io::load_coords_exr(path)?;
+            if (w, h) != (output.width, output.height) {
+                return Err(fail(format!(
+                    "{} is {w}x{h} but {} is {}x{}: give the coordinate map written together with the image",
+                    path.display(),
+                    args.image.display(),
+                    output.width,
+                    output.height
+                )));
+            }
+            Some((w, h, c))
+        }
+    };
+    let tileable = args.tile.get().unwrap_or_else(|| texsyn::analysis::detect_tileable(&exemplar));
+    let exemplar = FloatImage::from_exemplar(&exemplar);
+    let map = coords.as_ref().map(|(w, h, c)| CoordMap { coords: c, width: *w, height: *h, tileable });
+
+    let report = quality::evaluate(&exemplar, &output, quality::DEFAULT_RADIUS, map)?;
+    ui.out(report.to_json())
+}
+
+/// Any image the `image` crate reads, as floats.
+fn load_image(path: &Path) -> CliResult<FloatImage> {
+    let bad = |reason: String| texsyn::Error::BadImage { path: path.to_path_buf(), reason };
+    let io = |source| texsyn::Error::Io { path: path.to_path_buf(), source };
+    if path.is_dir() {
+        return Err(bad("it is a directory, not an image file".into()).into());
+    }
+    let reader = image::ImageReader::open(path).map_err(io)?.with_guessed_format().map_err(io)?;
+    if std::fs::metadata(path).map(|m| m.len()).map_err(io)? == 0 {
+        return Err(bad("the file is empty".into()).into());
+    }
+    if reader.format().is_none() {
+        return Err(bad("unrecognized image format".into()).into());
+    }
+    let img = reader.decode().map_err(|e| bad(e.to_string()))?;
+    Ok(FloatImage::from_dynamic(&img))
+}

@@ -1,0 +1,347 @@
+//! The `texsyn` command line: argument parsing (clap derive) and the subcommands, a
+//! thin layer over the library. Errors are printed as `error: <message>` and give exit
+//! code 1; usage errors are clap's (exit code 2).
+
+mod analyze;
+mod bench;
+mod eval;
+mod synth;
+
+use std::io::{IsTerminal, Write};
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use clap::{Args, Parser, Subcommand};
+
+use texsyn::analysis::Progress;
+
+/// Errors of the CLI: the library's errors and a few of its own, all printed with
+/// their `Display`.
+pub type CliError = Box<dyn std::error::Error + Send + Sync>;
+pub type CliResult<T> = std::result::Result<T, CliError>;
+
+/// An error message of the CLI itself.
+pub fn fail(message: impl Into<String>) -> CliError {
+    message.into().into()
+}
+
+#[derive(Parser, Debug)]
+#[command(
+    name = "texsyn",
+    version,
+    about = "Real-time appearance-space texture synthesis (Lefebvre & Hoppe 2006) on the GPU",
+    long_about = "Real-time appearance-space texture synthesis (Lefebvre & Hoppe 2006) on the GPU.\n\n\
+                  The GPU adapter is chosen automatically (discrete, integrated, then CPU \
+                  implementations such as lavapipe); set TEXSYN_BACKEND (vulkan, gl, metal, dx12) \
+                  and TEXSYN_ADAPTER (part of an adapter name, or its index) to choose.",
+    propagate_version = true
+)]
+pub struct Cli {
+    /// No progress or summaries on stderr (errors are still printed)
+    #[arg(short, long, global = true)]
+    pub quiet: bool,
+
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    Analyze(analyze::AnalyzeArgs),
+    Synth(synth::SynthArgs),
+    Eval(eval::EvalArgs),
+    Bench(bench::BenchArgs),
+}
+
+/// `--tileable` / `--no-tileable`: force either, or (neither) detect from the seams.
+#[derive(Args, Debug, Clone, Copy, Default)]
+pub struct TileArgs {
+    /// Treat the exemplar as tileable (wrap-around); default: detected from its seams
+    #[arg(long, conflicts_with = "no_tileable")]
+    pub tileable: bool,
+    /// Treat the exemplar as not tileable; default: detected from its seams
+    #[arg(long)]
+    pub no_tileable: bool,
+}
+
+impl TileArgs {
+    /// `None` = detect.
+    pub fn get(&self) -> Option<bool> {
+        match (self.tileable, self.no_tileable) {
+            (true, _) => Some(true),
+            (_, true) => Some(false),
+            _ => None,
+        }
+    }
+}
+
+/// Runs the CLI and returns the process exit code.
+pub fn main() -> i32 {
+    let cli = Cli::parse();
+    let ui = Ui::new(cli.quiet);
+    let result = match cli.command {
+        Command::Analyze(a) => analyze::run(&ui, a),
+        Command::Synth(a) => synth::run(&ui, a),
+        Command::Eval(a) => eval::run(&ui, a),
+        Command::Bench(a) => bench::run(&ui, a),
+    };
+    match result {
+        Ok(()) => 0,
+        Err(e) => {
+            ui.end_progress();
+            eprintln!("error: {e}");
+            1
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Output to the user
+// ---------------------------------------------------------------------------------------
+
+/// Where messages go: progress and summaries to stderr (unless quiet), results to stdout.
+pub struct Ui {
+    pub quiet: bool,
+    /// stderr is a terminal: progress lines are overwritten in place.
+    tty: bool,
+    /// A `\r` progress line is open on stderr.
+    open_line: std::cell::Cell<bool>,
+}
+
+impl Ui {
+    fn new(quiet: bool) -> Self {
+        Ui { quiet, tty: std::io::stderr().is_terminal(), open_line: std::cell::Cell::new(false) }
+    }
+
+    /// A line of information on stderr (silenced by `--quiet`).
+    pub fn info(&self, line: impl AsRef<str>) {
+        if !self.quiet {
+            self.end_progress();
+            eprintln!("{}", line.as_ref());
+        }
+    }
+
+    /// A progress line: overwritten in place on a terminal, one line each otherwise.
+    pub fn progress(&self, line: impl AsRef<str>) {
+        if self.quiet {
+            return;
+        }
+        if self.tty {
+            // Clear to the end of the line: the new text may be shorter.
+            eprint!("\r{}\x1b[K", line.as_ref());
+            let _ = std::io::stderr().flush();
+            self.open_line.set(true);
+        } else {
+            eprintln!("{}", line.as_ref());
+        }
+    }
+
+    /// Ends an open `\r` progress line.
+    pub fn end_progress(&self) {
+        if self.open_line.replace(false) {
+            eprintln!();
+        }
+    }
+
+    /// Analysis progress callback: `analysing level 3/8`.
+    pub fn analysis_progress(&self) -> impl FnMut(Progress) + '_ {
+        move |p: Progress| {
+            self.progress(format!("analysing level {}/{}", p.done, p.total));
+            if p.done == p.total {
+                self.end_progress();
+            }
+        }
+    }
+
+    /// A result on stdout (never silenced); a closed stdout is an error, not a panic.
+    pub fn out(&self, text: impl AsRef<str>) -> CliResult<()> {
+        let mut stdout = std::io::stdout().lock();
+        writeln!(stdout, "{}", text.as_ref())
+            .and_then(|_| stdout.flush())
+            .map_err(|e| fail(format!("cannot write to standard output: {e}")))
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Value parsers and helpers shared by the subcommands
+// ---------------------------------------------------------------------------------------
+
+/// `N` or `NxM` (also `N×M` / `NXM`), both at least 1.
+pub fn parse_size(s: &str) -> Result<[u32; 2], String> {
+    let t = s.trim();
+    let usage = || format!("\"{s}\" is not a size: expected N or NxM, e.g. 512 or 1024x768");
+    let parts: Vec<&str> = t.split(['x', 'X', '×']).collect();
+    let side = |p: &str| -> Result<u32, String> {
+        let p = p.trim();
+        if p.is_empty() || !p.bytes().all(|b| b.is_ascii_digit()) {
+            return Err(usage());
+        }
+        let v: u32 = p.parse().map_err(|_| format!("size \"{s}\": {p} is too large (at most {} pixels a side)", u32::MAX))?;
+        if v == 0 {
+            return Err(format!("size \"{s}\": width and height must be at least 1"));
+        }
+        Ok(v)
+    };
+    match parts.as_slice() {
+        [n] => {
+            let n = side(n)?;
+            Ok([n, n])
+        }
+        [w, h] => Ok([side(w)?, side(h)?]),
+        _ => Err(usage()),
+    }
+}
+
+/// A comma-separated list of sizes.
+pub fn parse_sizes(s: &str) -> Result<Vec<[u32; 2]>, String> {
+    let sizes: Vec<[u32; 2]> = s.split(',').map(parse_size).collect::<Result<_, _>>()?;
+    if sizes.is_empty() {
+        return Err("give at least one size".into());
+    }
+    Ok(sizes)
+}
+
+/// `R` or `R0,R1,...`: finite values in [0, 2].
+pub fn parse_randomness(s: &str) -> Result<Vec<f32>, String> {
+    let mut out = Vec::new();
+    for part in s.split(',') {
+        let p = part.trim();
+        let v: f32 = p.parse().map_err(|_| format!("\"{p}\" is not a number (expected R or R0,R1,... with values in [0, 2])"))?;
+        if !v.is_finite() || !(0.0..=2.0).contains(&v) {
+            return Err(format!("randomness {p} must be between 0 and 2"));
+        }
+        out.push(v);
+    }
+    Ok(out)
+}
+
+/// `X,Y` (integers, may be negative).
+pub fn parse_window(s: &str) -> Result<[i32; 2], String> {
+    let usage = || format!("\"{s}\" is not a window origin: expected X,Y (integers, e.g. 0,0 or -512,1024)");
+    let parts: Vec<&str> = s.split(',').collect();
+    let [x, y] = parts.as_slice() else {
+        return Err(usage());
+    };
+    let x: i32 = x.trim().parse().map_err(|_| usage())?;
+    let y: i32 = y.trim().parse().map_err(|_| usage())?;
+    // Keep well inside i32 so the plan's margins cannot overflow.
+    const LIMIT: i32 = 1 << 28;
+    if x.abs() > LIMIT || y.abs() > LIMIT {
+        return Err(format!("window origin {x},{y}: coordinates must lie within +-{LIMIT}"));
+    }
+    Ok([x, y])
+}
+
+/// Coherence in [0, 1].
+pub fn parse_coherence(s: &str) -> Result<f32, String> {
+    let v: f32 = s.trim().parse().map_err(|_| format!("\"{s}\" is not a number"))?;
+    if !v.is_finite() || !(0.0..=1.0).contains(&v) {
+        return Err(format!("coherence {s} must be between 0 and 1"));
+    }
+    Ok(v)
+}
+
+/// Checks, before any work, that `path` can be created: its directory exists.
+/// (The file itself is only written, atomically, once the work has succeeded.)
+pub fn check_output_dir(path: &Path) -> CliResult<()> {
+    if path.file_name().is_none() {
+        return Err(fail(format!("cannot write {}: the path does not name a file", path.display())));
+    }
+    if path.is_dir() {
+        return Err(fail(format!("cannot write {}: it is a directory; give a file name", path.display())));
+    }
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    if !dir.is_dir() {
+        return Err(fail(if dir.exists() {
+            format!("cannot write {}: {} is not a directory", path.display(), dir.display())
+        } else {
+            format!("cannot write {}: directory {} does not exist; create it first", path.display(), dir.display())
+        }));
+    }
+    Ok(())
+}
+
+/// `12.3 ms`, `1.23 s`, `850 us`.
+pub fn fmt_duration(d: Duration) -> String {
+    let s = d.as_secs_f64();
+    if s >= 10.0 {
+        format!("{s:.1} s")
+    } else if s >= 1.0 {
+        format!("{s:.2} s")
+    } else if s >= 1e-3 {
+        format!("{:.1} ms", s * 1e3)
+    } else {
+        format!("{:.0} us", s * 1e6)
+    }
+}
+
+/// `1.5 MiB`, `12 KiB`, `100 B`.
+pub fn fmt_bytes(n: u64) -> String {
+    if n >= 1 << 20 {
+        format!("{:.1} MiB", n as f64 / (1u64 << 20) as f64)
+    } else if n >= 1 << 10 {
+        format!("{:.1} KiB", n as f64 / 1024.0)
+    } else {
+        format!("{n} B")
+    }
+}
+
+/// `grey` / `RGB`.
+pub fn channels_name(channels: u32) -> &'static str {
+    if channels == 1 {
+        "grey"
+    } else {
+        "RGB"
+    }
+}
+
+/// The error the library gives for an output larger than the device, checked before
+/// the plan is built (the plan rejects huge outputs with a less specific message).
+pub fn check_output_size(ctx: &texsyn::gpu::GpuContext, width: u32, height: u32) -> texsyn::Result<()> {
+    let max_dim = ctx.limits().max_texture_dimension_2d;
+    if width > max_dim || height > max_dim {
+        return Err(texsyn::Error::TooLarge {
+            what: "output",
+            width,
+            height,
+            limit: format!("at most {max_dim} pixels a side"),
+            hint: "synthesize it in windows (--window) and assemble them",
+        });
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sizes() {
+        assert_eq!(parse_size("64"), Ok([64, 64]));
+        assert_eq!(parse_size("64x32"), Ok([64, 32]));
+        assert_eq!(parse_size(" 7X9 "), Ok([7, 9]));
+        for bad in ["0", "0x5", "5x0", "", "x", "abc", "5x", "x5", "1x2x3", "-4", "+4", "4.5", "99999999999"] {
+            assert!(parse_size(bad).is_err(), "{bad}");
+        }
+        assert_eq!(parse_sizes("256,512x128"), Ok(vec![[256, 256], [512, 128]]));
+        assert!(parse_sizes("256,,512").is_err());
+    }
+
+    #[test]
+    fn randomness_and_window() {
+        assert_eq!(parse_randomness("0.5"), Ok(vec![0.5]));
+        assert_eq!(parse_randomness("1,0.5, 0"), Ok(vec![1.0, 0.5, 0.0]));
+        for bad in ["", "nan", "inf", "-0.1", "2.5", "1,,2", "a"] {
+            assert!(parse_randomness(bad).is_err(), "{bad}");
+        }
+        assert_eq!(parse_window("-5,7"), Ok([-5, 7]));
+        for bad in ["", "1", "1,2,3", "a,b", "1.5,2", "999999999,0"] {
+            assert!(parse_window(bad).is_err(), "{bad}");
+        }
+        assert!(parse_coherence("1.5").is_err());
+        assert_eq!(parse_coherence("0.25"), Ok(0.25));
+    }
+}

@@ -1,0 +1,262 @@
+//! `texsyn synth`: synthesize a texture from an exemplar image or an analysis file.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use clap::Args;
+
+use texsyn::analysis::{Analysis, AnalysisOptions, MAX_K};
+use texsyn::gpu::synth::{GpuSynthesis, GpuSynthesizer};
+use texsyn::gpu::GpuContext;
+use texsyn::passes::SynthParams;
+
+use super::{
+    channels_name, check_output_dir, check_output_size, fail, fmt_duration, parse_coherence, parse_randomness, parse_size, parse_window, CliResult,
+    TileArgs, Ui,
+};
+
+/// Synthesize a texture of any size from an exemplar image or analysis file
+#[derive(Args, Debug)]
+#[command(
+    long_about = "Synthesize a texture of any size from an exemplar image or analysis file.\n\n\
+                  The output is a window of an infinite, deterministic texture: the same \
+                  exemplar, options and seed always give the same pixels, and windows at \
+                  different --window origins fit together seamlessly."
+)]
+pub struct SynthArgs {
+    /// Exemplar image, or an analysis file written by `texsyn analyze` (told apart by content)
+    pub exemplar: PathBuf,
+
+    /// Output image; the format follows the extension (png, jpg, bmp, tga, tif, webp, gif,
+    /// pnm, exr, hdr; none: png). Written atomically, only once synthesis succeeded
+    #[arg(short, long, value_name = "OUT")]
+    pub output: PathBuf,
+
+    /// Output size: N (square) or WxH
+    #[arg(long, value_name = "N[xM]", value_parser = parse_size)]
+    pub size: [u32; 2],
+
+    /// Random seed (0..=4294967295); each seed gives a different texture
+    #[arg(long, value_name = "S", default_value_t = SynthParams::default().seed)]
+    pub seed: u32,
+
+    /// Jitter randomness in [0, 2]: one value for every level, or R0,R1,... per level
+    /// (coarsest first, the last repeats). Default: 0.5 coarse, 0.25 next-to-finest,
+    /// 0 finest
+    #[arg(long, value_name = "R|R0,R1,...", value_parser = parse_randomness)]
+    pub randomness: Option<Vec<f32>>,
+
+    /// Correction passes per level (0..=16; each is 4 subpasses)
+    #[arg(long, value_name = "P", default_value_t = SynthParams::default().passes,
+          value_parser = clap::value_parser!(u32).range(0..=16))]
+    pub passes: u32,
+
+    /// Similarity-set size used when analysing an image (1..=8; default 2). With an
+    /// analysis file it must match the file's
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=MAX_K as i64))]
+    pub k: Option<u32>,
+
+    /// Bias towards coherent candidates in [0, 1] (0 = none)
+    #[arg(long, value_name = "C", default_value_t = SynthParams::default().coherence, value_parser = parse_coherence)]
+    pub coherence: f32,
+
+    #[command(flatten)]
+    pub tile: TileArgs,
+
+    /// Origin of the output window in the infinite texture
+    #[arg(long, value_name = "X,Y", default_value = "0,0", value_parser = parse_window, allow_hyphen_values = true)]
+    pub window: [i32; 2],
+
+    /// Also write the exemplar coordinate of every output pixel, as a float EXR
+    /// (R = x, G = y)
+    #[arg(long, value_name = "FILE.exr")]
+    pub coords_out: Option<PathBuf>,
+}
+
+/// Loads an analysis file or analyses an image; `--k` / `--tileable` must agree with an
+/// analysis file. Returns the analysis and whether it came from a file.
+pub fn load(ui: &Ui, path: &Path, k: Option<u32>, tileable: Option<bool>, threads: usize) -> CliResult<(Analysis, bool)> {
+    let from_file = texsyn::session::is_analysis_file(path)?;
+    let options = AnalysisOptions { k: k.unwrap_or(AnalysisOptions::default().k), tileable, threads, ..AnalysisOptions::default() };
+    let analysis = texsyn::session::load_source(path, &options, ui.analysis_progress())?;
+    if from_file {
+        if let Some(k) = k.filter(|&k| k != analysis.k) {
+            return Err(fail(format!(
+                "--k {k} does not match the analysis file {} (k = {}); drop --k or re-run `texsyn analyze --k {k}`",
+                path.display(),
+                analysis.k
+            )));
+        }
+        if let Some(t) = tileable.filter(|&t| t != analysis.tileable) {
+            let flag = if t { "--tileable" } else { "--no-tileable" };
+            return Err(fail(format!(
+                "{flag} does not match the analysis file {} (analysed as {}tileable); drop {flag} or re-run `texsyn analyze {flag}`",
+                path.display(),
+                if analysis.tileable { "" } else { "not " }
+            )));
+        }
+    }
+    Ok((analysis, from_file))
+}
+
+pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
+    // Cheap checks first, so that a typo does not cost an analysis.
+    check_output_dir(&args.output)?;
+    check_save_extension(&args.output)?;
+    if let Some(c) = &args.coords_out {
+        check_output_dir(c)?;
+    }
+    let [width, height] = args.size;
+
+    let t = Instant::now();
+    let ctx = GpuContext::headless()?;
+    let device_time = t.elapsed();
+    ui.info(format!("adapter: {}", ctx.describe()));
+    check_output_size(&ctx, width, height)?;
+
+    let t = Instant::now();
+    let (analysis, from_file) = load(ui, &args.exemplar, args.k, args.tile.get(), 0)?;
+    let load_time = t.elapsed();
+    ui.info(format!(
+        "exemplar: {}x{} {}, {} levels, k = {}, {}tileable{}",
+        analysis.width,
+        analysis.height,
+        channels_name(analysis.channels),
+        analysis.levels.len(),
+        analysis.k,
+        if analysis.tileable { "" } else { "not " },
+        if from_file { " (analysis file)" } else { "" }
+    ));
+    let channels = analysis.channels;
+
+    let params = SynthParams {
+        width,
+        height,
+        origin: args.window,
+        seed: args.seed,
+        randomness: args.randomness.clone().unwrap_or_default(),
+        passes: args.passes,
+        coherence: args.coherence,
+    };
+    // Validate the parameters before uploading anything.
+    texsyn::passes::SynthPlan::new(&analysis, &params)?;
+
+    let t = Instant::now();
+    let synthesizer = GpuSynthesizer::new(&ctx, Arc::new(analysis))?;
+    let upload_time = t.elapsed();
+
+    let timings;
+    if let Some(coords_path) = &args.coords_out {
+        // Coordinates only come back through `synthesize_to_host`, which synthesizes and
+        // reads back in one go: report the two together.
+        let t = Instant::now();
+        let s = synthesizer.synthesize_to_host(&ctx, &params)?;
+        ctx.take_uncaptured_errors()?;
+        let synth_readback = t.elapsed();
+        let t = Instant::now();
+        let rgba8: Vec<u8> = s.colors.iter().flatten().copied().collect();
+        texsyn::image_io::save_image_atomic(&args.output, width, height, channels, &rgba8)?;
+        texsyn::image_io::save_coords_exr_atomic(coords_path, width, height, &s.coords)?;
+        timings = Timings::Combined { synth_readback, write: t.elapsed() };
+    } else {
+        let t = Instant::now();
+        let gpu = synthesizer.synthesize(&ctx, &params)?;
+        ctx.take_uncaptured_errors()?;
+        let synth = t.elapsed();
+        let t = Instant::now();
+        let rgba8 = read_texture(&ctx, &gpu)?;
+        let readback = t.elapsed();
+        let t = Instant::now();
+        texsyn::image_io::save_image_atomic(&args.output, width, height, channels, &rgba8)?;
+        timings = Timings::Separate { synth, readback, write: t.elapsed() };
+    }
+
+    let px = width as f64 * height as f64;
+    ui.info(format!("output: {} ({width}x{height}, seed {}, window {},{})", args.output.display(), args.seed, args.window[0], args.window[1]));
+    if let Some(c) = &args.coords_out {
+        ui.info(format!("coordinates: {}", c.display()));
+    }
+    ui.info(format!("time: device {}", fmt_duration(device_time)));
+    ui.info(format!("      {} {}", if from_file { "load analysis" } else { "load + analysis" }, fmt_duration(load_time)));
+    ui.info(format!("      GPU upload + pipelines {}", fmt_duration(upload_time)));
+    match timings {
+        Timings::Separate { synth, readback, write } => {
+            ui.info(format!("      synthesis (GPU, synchronized) {} ({:.1} Mpixel/s)", fmt_duration(synth), px / synth.as_secs_f64() / 1e6));
+            ui.info(format!("      read-back {}, write {}", fmt_duration(readback), fmt_duration(write)));
+        }
+        Timings::Combined { synth_readback, write } => {
+            ui.info(format!("      synthesis + read-back of colours and coordinates {}", fmt_duration(synth_readback)));
+            ui.info(format!("      write {}", fmt_duration(write)));
+        }
+    }
+    Ok(())
+}
+
+enum Timings {
+    Separate { synth: Duration, readback: Duration, write: Duration },
+    Combined { synth_readback: Duration, write: Duration },
+}
+
+/// Copies a synthesized texture back to the host as tightly packed RGBA8.
+fn read_texture(ctx: &GpuContext, s: &GpuSynthesis) -> texsyn::Result<Vec<u8>> {
+    let (w, h) = (s.width, s.height);
+    let row = (w as u64 * 4).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT as u64);
+    let buffer = ctx.scoped(|| {
+        let buffer = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("texsyn cli readback"),
+            size: row * h as u64,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        encoder.copy_texture_to_buffer(
+            wgpu::TexelCopyTextureInfo { texture: &s.texture, mip_level: 0, origin: wgpu::Origin3d::ZERO, aspect: wgpu::TextureAspect::All },
+            wgpu::TexelCopyBufferInfo {
+                buffer: &buffer,
+                layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(row as u32), rows_per_image: Some(h) },
+            },
+            wgpu::Extent3d { width: w, height: h, depth_or_array_layers: 1 },
+        );
+        ctx.queue.submit([encoder.finish()]);
+        buffer
+    })?;
+    let (tx, rx) = std::sync::mpsc::channel();
+    buffer.map_async(wgpu::MapMode::Read, .., move |r| {
+        let _ = tx.send(r);
+    });
+    ctx.wait_idle()?;
+    let gpu_err = |e: &dyn std::fmt::Display| texsyn::Error::Gpu(format!("reading back the texture: {e}"));
+    rx.recv().map_err(|e| gpu_err(&e))?.map_err(|e| gpu_err(&e))?;
+    let mut out = Vec::with_capacity(w as usize * h as usize * 4);
+    {
+        let data = buffer.get_mapped_range(..).map_err(|e| gpu_err(&e))?;
+        for y in 0..h as usize {
+            let start = y * row as usize;
+            out.extend_from_slice(&data[start..start + w as usize * 4]);
+        }
+    }
+    buffer.unmap();
+    Ok(out)
+}
+
+/// Rejects an output extension the library cannot write, before any work (the library
+/// checks again when saving).
+fn check_save_extension(path: &Path) -> CliResult<()> {
+    use image::ImageFormat as F;
+    let Some(ext) = path.extension() else {
+        return Ok(());
+    };
+    let ok = F::from_extension(ext)
+        .is_some_and(|f| matches!(f, F::Png | F::Jpeg | F::Bmp | F::Tga | F::Tiff | F::WebP | F::Gif | F::Pnm | F::OpenExr | F::Hdr));
+    if ok {
+        Ok(())
+    } else {
+        Err(fail(format!(
+            "cannot write {}: unsupported image extension .{}; supported: {} (no extension: png)",
+            path.display(),
+            ext.to_string_lossy(),
+            texsyn::image_io::SUPPORTED_SAVE_EXTENSIONS
+        )))
+    }
+}

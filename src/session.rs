@@ -1,0 +1,257 @@
+//! The high-level API: a builder that takes an exemplar (image, pixels or a saved
+//! analysis), analyses it if needed, uploads it to a GPU (headless or the caller's
+//! device) and synthesizes textures.
+//!
+//! ```no_run
+//! let session = texsyn::Session::builder()
+//!     .exemplar_path("assets/gravel.png")
+//!     .seed(7)
+//!     .size(512, 512)
+//!     .build()?;
+//! let texture = session.run()?;          // pixels on the host
+//! texture.save("out.png")?;
+//! let on_gpu = session.run_gpu()?;       // a wgpu::Texture, no read-back
+//! # Ok::<(), texsyn::Error>(())
+//! ```
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use crate::analysis::{self, Analysis, AnalysisOptions, Exemplar, Progress};
+use crate::error::{Error, Result};
+use crate::gpu::synth::{GpuSynthesis, GpuSynthesizer};
+use crate::gpu::GpuContext;
+use crate::passes::{SynthParams, Synthesis};
+
+enum Source {
+    None,
+    Path(PathBuf),
+    Exemplar(Exemplar),
+    Analysis(Analysis),
+}
+
+/// Builds a [`Session`].
+pub struct SessionBuilder {
+    source: Source,
+    options: AnalysisOptions,
+    params: SynthParams,
+    context: Option<GpuContext>,
+    progress: Option<Box<dyn FnMut(Progress)>>,
+}
+
+/// An analysed exemplar on a GPU, ready to synthesize.
+pub struct Session {
+    context: GpuContext,
+    synthesizer: GpuSynthesizer,
+    params: SynthParams,
+}
+
+impl Session {
+    pub fn builder() -> SessionBuilder {
+        SessionBuilder {
+            source: Source::None,
+            options: AnalysisOptions::default(),
+            params: SynthParams::default(),
+            context: None,
+            progress: None,
+        }
+    }
+
+    /// Synthesizes with the session's parameters and reads the result back.
+    pub fn run(&self) -> Result<Texture> {
+        self.run_with(&self.params)
+    }
+
+    /// Synthesizes with other parameters (size, window, seed, ...), same exemplar.
+    pub fn run_with(&self, params: &SynthParams) -> Result<Texture> {
+        let s = self.synthesizer.synthesize_to_host(&self.context, params)?;
+        Ok(Texture { synthesis: s, channels: self.analysis().channels, exemplar_size: [self.analysis().width, self.analysis().height], tileable: self.analysis().tileable })
+    }
+
+    /// Synthesizes into a new GPU texture (`Rgba8Unorm`); nothing is read back.
+    pub fn run_gpu(&self) -> Result<GpuSynthesis> {
+        self.synthesizer.synthesize(&self.context, &self.params)
+    }
+
+    /// Records a synthesis into the caller's command encoder (for embedding in a
+    /// frame); the texture is ready once the caller submits the encoder.
+    pub fn encode(&self, encoder: &mut wgpu::CommandEncoder, params: &SynthParams) -> Result<GpuSynthesis> {
+        self.synthesizer.encode(&self.context, encoder, params)
+    }
+
+    pub fn analysis(&self) -> &Analysis {
+        self.synthesizer.analysis()
+    }
+
+    pub fn context(&self) -> &GpuContext {
+        &self.context
+    }
+
+    pub fn params(&self) -> &SynthParams {
+        &self.params
+    }
+
+    pub fn synthesizer(&self) -> &GpuSynthesizer {
+        &self.synthesizer
+    }
+}
+
+impl SessionBuilder {
+    /// The exemplar: an image file, or a saved analysis (`texsyn analyze`), told apart
+    /// by content.
+    pub fn exemplar_path(mut self, path: impl AsRef<Path>) -> Self {
+        self.source = Source::Path(path.as_ref().to_path_buf());
+        self
+    }
+
+    pub fn exemplar(mut self, exemplar: Exemplar) -> Self {
+        self.source = Source::Exemplar(exemplar);
+        self
+    }
+
+    /// An analysis made earlier; skips the analysis.
+    pub fn analysis(mut self, analysis: Analysis) -> Self {
+        self.source = Source::Analysis(analysis);
+        self
+    }
+
+    pub fn analysis_options(mut self, options: AnalysisOptions) -> Self {
+        self.options = options;
+        self
+    }
+
+    /// Similarity-set size (default 2).
+    pub fn k(mut self, k: u32) -> Self {
+        self.options.k = k;
+        self
+    }
+
+    /// Force tileable (wrap-around) or non-tileable handling; default: detected.
+    pub fn tileable(mut self, tileable: bool) -> Self {
+        self.options.tileable = Some(tileable);
+        self
+    }
+
+    pub fn params(mut self, params: SynthParams) -> Self {
+        self.params = params;
+        self
+    }
+
+    pub fn size(mut self, width: u32, height: u32) -> Self {
+        self.params.width = width;
+        self.params.height = height;
+        self
+    }
+
+    pub fn seed(mut self, seed: u32) -> Self {
+        self.params.seed = seed;
+        self
+    }
+
+    /// Per-level randomness (index = level, coarsest first; the last value repeats).
+    pub fn randomness(mut self, r: Vec<f32>) -> Self {
+        self.params.randomness = r;
+        self
+    }
+
+    pub fn passes(mut self, passes: u32) -> Self {
+        self.params.passes = passes;
+        self
+    }
+
+    /// Run on the caller's device instead of creating a headless one.
+    pub fn context(mut self, context: GpuContext) -> Self {
+        self.context = Some(context);
+        self
+    }
+
+    /// Called after each analysed level.
+    pub fn on_progress(mut self, f: impl FnMut(Progress) + 'static) -> Self {
+        self.progress = Some(Box::new(f));
+        self
+    }
+
+    pub fn build(self) -> Result<Session> {
+        let mut progress = self.progress;
+        let mut report = |p: Progress| {
+            if let Some(f) = progress.as_mut() {
+                f(p)
+            }
+        };
+        let analysis = match self.source {
+            Source::None => return Err(Error::InvalidParameter("no exemplar given: call exemplar_path, exemplar or analysis".into())),
+            Source::Analysis(a) => a,
+            Source::Exemplar(e) => analysis::analyze(&e, &self.options, &mut report)?,
+            Source::Path(p) => load_source(&p, &self.options, &mut report)?,
+        };
+        // Validate the parameters before touching the GPU.
+        crate::passes::SynthPlan::new(&analysis, &self.params)?;
+        let context = match self.context {
+            Some(c) => c,
+            None => GpuContext::headless()?,
+        };
+        let synthesizer = GpuSynthesizer::new(&context, Arc::new(analysis))?;
+        Ok(Session { context, synthesizer, params: self.params })
+    }
+}
+
+/// Loads an analysis file or analyses an image, whichever `path` holds.
+pub fn load_source(path: &Path, options: &AnalysisOptions, progress: impl FnMut(Progress)) -> Result<Analysis> {
+    if is_analysis_file(path)? {
+        Analysis::load(path)
+    } else {
+        let ex = crate::image_io::load_exemplar(path)?;
+        analysis::analyze(&ex, options, progress)
+    }
+}
+
+/// A synthesized texture on the host.
+#[derive(Clone, Debug)]
+pub struct Texture {
+    pub synthesis: Synthesis,
+    /// 1 for grey exemplars, 3 for colour.
+    pub channels: u32,
+    pub exemplar_size: [u32; 2],
+    pub tileable: bool,
+}
+
+impl Texture {
+    pub fn width(&self) -> u32 {
+        self.synthesis.width
+    }
+    pub fn height(&self) -> u32 {
+        self.synthesis.height
+    }
+    /// RGBA8 bytes, row-major.
+    pub fn rgba8(&self) -> Vec<u8> {
+        self.synthesis.colors.iter().flatten().copied().collect()
+    }
+    /// Exemplar coordinates per pixel.
+    pub fn coords(&self) -> &[[i32; 2]] {
+        &self.synthesis.coords
+    }
+    /// Saves the colours (PNG, or another format by extension), atomically.
+    pub fn save(&self, path: impl AsRef<Path>) -> Result<()> {
+        crate::image_io::save_image_atomic(path.as_ref(), self.width(), self.height(), self.channels, &self.rgba8())
+    }
+    /// Saves the coordinate map as a float EXR (R = x, G = y), atomically.
+    pub fn save_coords(&self, path: impl AsRef<Path>) -> Result<()> {
+        crate::image_io::save_coords_exr_atomic(path.as_ref(), self.width(), self.height(), self.coords())
+    }
+}
+
+/// Whether `path` starts with the analysis-file magic (a missing file is an error).
+pub fn is_analysis_file(path: &Path) -> Result<bool> {
+    use std::io::Read;
+    let mut f = std::fs::File::open(path).map_err(|source| Error::Io { path: path.to_path_buf(), source })?;
+    let mut head = [0u8; 8];
+    let mut n = 0;
+    while n < head.len() {
+        match f.read(&mut head[n..]) {
+            Ok(0) => break,
+            Ok(k) => n += k,
+            Err(source) => return Err(Error::Io { path: path.to_path_buf(), source }),
+        }
+    }
+    Ok(n == head.len() && head == analysis::file::MAGIC)
+}

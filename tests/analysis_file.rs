@@ -1,0 +1,477 @@
+//! The analysis file format: round trip, and clean errors (no panic, no huge
+//! allocation) for every kind of damaged or crafted file. The `Analysis` is built by hand,
+//! independent of the analysis computation.
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+use std::path::{Path, PathBuf};
+
+use texsyn::analysis::file::FORMAT_VERSION;
+use texsyn::analysis::{level_count, level_margin, Analysis, LevelData, DIM, MAX_K};
+use texsyn::Error;
+
+// ---- allocation tracking: the largest single allocation made by this thread ----------
+
+struct Tracking;
+
+thread_local! {
+    static LARGEST: Cell<usize> = const { Cell::new(0) };
+}
+
+unsafe impl GlobalAlloc for Tracking {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        let _ = LARGEST.try_with(|m| m.set(m.get().max(layout.size())));
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        let _ = LARGEST.try_with(|m| m.set(m.get().max(new_size)));
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Tracking = Tracking;
+
+/// Runs `f` and returns its result with the largest single allocation it made.
+fn largest_alloc<T>(f: impl FnOnce() -> T) -> (T, usize) {
+    LARGEST.with(|m| m.set(0));
+    let r = f();
+    (r, LARGEST.with(|m| m.get()))
+}
+
+// ---- helpers ----------------------------------------------------------------------------
+
+const HEADER_LEN: usize = 20;
+
+struct Lcg(u64);
+impl Lcg {
+    fn next(&mut self) -> u32 {
+        self.0 = self
+            .0
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (self.0 >> 33) as u32
+    }
+    fn i16(&mut self) -> i16 {
+        self.next() as u16 as i16
+    }
+}
+
+fn synthetic(width: u32, height: u32, k: u32, tileable: bool, seed: u64) -> Analysis {
+    let mut rng = Lcg(seed);
+    let n = (width * height) as usize;
+    let top = level_count(width, height);
+    let colors = (0..n)
+        .map(|_| {
+            let v = rng.next().to_le_bytes();
+            [v[0], v[1], v[2], 255]
+        })
+        .collect();
+    let levels = (0..=top)
+        .map(|l| {
+            let spacing = 1u32 << (top - l);
+            let mut proj = [[0i16; 4 * DIM]; DIM];
+            for row in proj.iter_mut() {
+                for v in row.iter_mut() {
+                    *v = rng.i16();
+                }
+            }
+            LevelData {
+                spacing,
+                margin: level_margin(width, height, spacing, tileable),
+                et: (0..n).map(|_| std::array::from_fn(|_| rng.i16())).collect(),
+                proj,
+                qe: (0..n).map(|_| std::array::from_fn(|_| rng.i16())).collect(),
+                shift: rng.next() % 32,
+                offsets: (0..n * (k as usize - 1))
+                    .map(|_| [rng.i16() % 16, rng.i16() % 16])
+                    .collect(),
+                residual_variance: (rng.next() % 1000) as f32 / 1000.0,
+                runtime_residual_variance: (rng.next() % 1000) as f32 / 997.0,
+            }
+        })
+        .collect();
+    Analysis {
+        width,
+        height,
+        channels: 3,
+        tileable,
+        k,
+        colors,
+        levels,
+    }
+}
+
+fn fnv1a(bytes: &[u8]) -> u64 {
+    let mut h: u64 = 0xcbf29ce484222325;
+    for &b in bytes {
+        h ^= b as u64;
+        h = h.wrapping_mul(0x100000001b3);
+    }
+    h
+}
+
+/// Wraps a payload into a complete file with a valid header and checksum.
+fn wrap(payload: &[u8]) -> Vec<u8> {
+    let mut v = b"TEXSYNA\0".to_vec();
+    v.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
+    v.extend_from_slice(&(payload.len() as u64).to_le_bytes());
+    v.extend_from_slice(payload);
+    v.extend_from_slice(&fnv1a(payload).to_le_bytes());
+    v
+}
+
+fn payload_of(bytes: &[u8]) -> &[u8] {
+    &bytes[HEADER_LEN..bytes.len() - 8]
+}
+
+fn p() -> PathBuf {
+    PathBuf::from("test.tsa")
+}
+
+/// Decodes and expects `BadAnalysisFile` whose reason contains every one of `needles`;
+/// also checks that decoding allocated at most `max_alloc` bytes at once.
+fn expect_bad(bytes: &[u8], needles: &[&str], max_alloc: usize) -> String {
+    let (r, largest) = largest_alloc(|| Analysis::from_bytes(bytes, &p()));
+    let reason = match r {
+        Err(Error::BadAnalysisFile { path, reason }) => {
+            assert_eq!(path, p());
+            reason
+        }
+        Err(e) => panic!("expected BadAnalysisFile, got {e:?}"),
+        Ok(_) => panic!("expected an error for {needles:?}, decoding succeeded"),
+    };
+    for n in needles {
+        assert!(reason.contains(n), "reason {reason:?} lacks {n:?}");
+    }
+    assert!(
+        largest <= max_alloc,
+        "decoding allocated {largest} bytes at once for {reason:?}"
+    );
+    reason
+}
+
+struct TempDir(PathBuf);
+impl TempDir {
+    fn new(tag: &str) -> Self {
+        let nanos = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .unwrap()
+            .as_nanos();
+        let d = std::env::temp_dir().join(format!(
+            "texsyn-test-analysis-{tag}-{}-{nanos}",
+            std::process::id()
+        ));
+        std::fs::create_dir_all(&d).unwrap();
+        TempDir(d)
+    }
+    fn path(&self) -> &Path {
+        &self.0
+    }
+}
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+// ---- tests ------------------------------------------------------------------------------
+
+#[test]
+fn round_trip_bytes_and_struct() {
+    for (w, h, k, tileable) in [(16, 16, 3, false), (16, 16, 1, true), (40, 17, 2, false)] {
+        let a = synthetic(w, h, k, tileable, 7 + w as u64);
+        if w == 16 {
+            assert_eq!(a.levels.len(), 5);
+        }
+        let bytes = a.to_bytes();
+        assert_eq!(&bytes[..8], b"TEXSYNA\0");
+        assert_eq!(u32::from_le_bytes(bytes[8..12].try_into().unwrap()), 1);
+        let plen = u64::from_le_bytes(bytes[12..20].try_into().unwrap());
+        assert_eq!(plen as usize + HEADER_LEN + 8, bytes.len());
+        let b = Analysis::from_bytes(&bytes, &p()).unwrap();
+        assert_eq!(a, b);
+        assert_eq!(b.to_bytes(), bytes);
+    }
+}
+
+#[test]
+fn save_load_round_trip_and_overwrite() {
+    let dir = TempDir::new("saveload");
+    let path = dir.path().join("a.tsa");
+    let a = synthetic(16, 16, 2, false, 1);
+    a.save(&path).unwrap();
+    assert_eq!(std::fs::read(&path).unwrap(), a.to_bytes());
+    assert_eq!(Analysis::load(&path).unwrap(), a);
+    // Overwrite with a different analysis.
+    let b = synthetic(20, 16, 3, true, 2);
+    b.save(&path).unwrap();
+    assert_eq!(Analysis::load(&path).unwrap(), b);
+    // Only the file itself is in the directory: no temporary left behind.
+    let names: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(names, vec![std::ffi::OsString::from("a.tsa")]);
+}
+
+#[test]
+fn save_to_missing_directory_is_write_error() {
+    let dir = TempDir::new("savemissing");
+    let path = dir.path().join("nope").join("a.tsa");
+    let a = synthetic(16, 16, 2, false, 1);
+    match a.save(&path) {
+        Err(Error::Write { path: p, .. }) => assert_eq!(p, path),
+        other => panic!("expected Write error, got {other:?}"),
+    }
+    assert!(!path.exists());
+}
+
+#[test]
+fn truncated_at_many_lengths() {
+    let bytes = synthetic(16, 16, 2, false, 3).to_bytes();
+    let total = bytes.len();
+    for len in [1, 4, 7] {
+        expect_bad(&bytes[..len], &["truncated", "texsyn analyze"], 4096);
+    }
+    for len in [8, 11, 12, 19] {
+        expect_bad(
+            &bytes[..len],
+            &[
+                "truncated: expected at least 28 bytes",
+                &format!("found {len}"),
+            ],
+            4096,
+        );
+    }
+    for len in [20, 21, 100, total / 2, total - 9, total - 8, total - 1] {
+        expect_bad(
+            &bytes[..len],
+            &[
+                &format!("truncated: expected {total} bytes, found {len}"),
+                "texsyn analyze",
+            ],
+            4096,
+        );
+    }
+    // One byte too many is not accepted either.
+    let mut long = bytes.clone();
+    long.push(0);
+    expect_bad(&long, &["trailing data"], 4096);
+}
+
+#[test]
+fn bad_magic() {
+    let mut bytes = synthetic(16, 16, 2, false, 4).to_bytes();
+    bytes[0] = b'X';
+    expect_bad(&bytes, &["not a texsyn analysis file (bad magic)"], 4096);
+    expect_bad(
+        b"\x89PNG\r\n\x1a\n rest of a png",
+        &["not a texsyn analysis file (bad magic)"],
+        4096,
+    );
+    expect_bad(b"hello", &["bad magic"], 4096);
+}
+
+#[test]
+fn wrong_version() {
+    let mut bytes = synthetic(16, 16, 2, false, 5).to_bytes();
+    bytes[8..12].copy_from_slice(&7u32.to_le_bytes());
+    expect_bad(
+        &bytes,
+        &[
+            "analysis file version 7 is not supported by this texsyn (expects 1)",
+            "re-run `texsyn analyze`",
+        ],
+        4096,
+    );
+    // The version is reported even when the rest of the file has another layout.
+    expect_bad(
+        b"TEXSYNA\0\x02\0\0\0",
+        &["version 2 is not supported"],
+        4096,
+    );
+}
+
+#[test]
+fn flipped_byte_is_checksum_error() {
+    let bytes = synthetic(16, 16, 2, false, 6).to_bytes();
+    for pos in [
+        HEADER_LEN,
+        HEADER_LEN + 1000,
+        bytes.len() - 9,
+        bytes.len() - 1,
+    ] {
+        let mut b = bytes.clone();
+        b[pos] ^= 0x10;
+        expect_bad(
+            &b,
+            &["checksum mismatch: the file is corrupt; re-run `texsyn analyze`"],
+            4096,
+        );
+    }
+}
+
+#[test]
+fn empty_and_missing_files() {
+    let dir = TempDir::new("emptymissing");
+    let empty = dir.path().join("empty.tsa");
+    std::fs::write(&empty, b"").unwrap();
+    match Analysis::load(&empty) {
+        Err(Error::BadAnalysisFile { path, reason }) => {
+            assert_eq!(path, empty);
+            assert!(reason.contains("empty"), "{reason}");
+        }
+        other => panic!("expected BadAnalysisFile, got {other:?}"),
+    }
+    let missing = dir.path().join("missing.tsa");
+    match Analysis::load(&missing) {
+        Err(Error::Io { path, source }) => {
+            assert_eq!(path, missing);
+            assert_eq!(source.kind(), std::io::ErrorKind::NotFound);
+        }
+        other => panic!("expected Io, got {other:?}"),
+    }
+}
+
+/// Files with a valid header and checksum but absurd content: rejected before any large
+/// allocation.
+#[test]
+fn crafted_absurd_lengths() {
+    const LIMIT: usize = 1 << 16;
+    let le32 = |v: u32| v.to_le_bytes();
+
+    // Huge but in-range size, colour count matching it, no data behind it.
+    let mut pl = Vec::new();
+    for v in [65536u32, 65536, 3] {
+        pl.extend_from_slice(&le32(v));
+    }
+    pl.push(0);
+    pl.extend_from_slice(&le32(8));
+    pl.extend_from_slice(&(65536u64 * 65536).to_le_bytes());
+    expect_bad(
+        &wrap(&pl),
+        &["colors needs", "bytes but the payload has only 0 left"],
+        LIMIT,
+    );
+
+    // Colour count that overflows when multiplied by the element size.
+    let mut pl2 = pl[..17].to_vec();
+    pl2.extend_from_slice(&u64::MAX.to_le_bytes());
+    expect_bad(
+        &wrap(&pl2),
+        &["colors has 18446744073709551615 entries"],
+        LIMIT,
+    );
+
+    // Absurd sizes.
+    for (w, h) in [(u32::MAX, 16), (16, 0), (15, 16), (65537, 16)] {
+        let mut pl = Vec::new();
+        for v in [w, h, 3, 0] {
+            pl.extend_from_slice(&le32(v));
+        }
+        expect_bad(&wrap(&pl), &["outside 16..=65536"], LIMIT);
+    }
+
+    // Absurd payload length in the header.
+    let mut b = b"TEXSYNA\0".to_vec();
+    b.extend_from_slice(&le32(1));
+    b.extend_from_slice(&u64::MAX.to_le_bytes());
+    b.extend_from_slice(&[0; 8]);
+    expect_bad(&b, &["texsyn analyze"], LIMIT);
+    let mut b = b"TEXSYNA\0".to_vec();
+    b.extend_from_slice(&le32(1));
+    b.extend_from_slice(&(1u64 << 40).to_le_bytes());
+    b.extend_from_slice(&[0; 8]);
+    expect_bad(
+        &b,
+        &["truncated: expected 1099511627804 bytes, found 28"],
+        LIMIT,
+    );
+
+    // A valid beginning, then a level whose `et` count is huge.
+    let a = synthetic(16, 16, 2, false, 9);
+    let good = a.to_bytes();
+    let payload = payload_of(&good);
+    // width, height, channels, tileable, k, n_colors, colors, n_levels, then level 0:
+    // spacing, margin, shift, 2 f32, proj, n_et.
+    let n_et_at = 17 + 8 + 16 * 16 * 4 + 4 + 5 * 4 + 2 * 4 * DIM * DIM;
+    assert_eq!(
+        u64::from_le_bytes(payload[n_et_at..n_et_at + 8].try_into().unwrap()),
+        256
+    );
+    for n in [257u64, 1 << 40, u64::MAX] {
+        let mut pl = payload.to_vec();
+        pl[n_et_at..n_et_at + 8].copy_from_slice(&n.to_le_bytes());
+        expect_bad(
+            &wrap(&pl),
+            &["level 0 et has", "entries, expected 256"],
+            LIMIT,
+        );
+    }
+    // Payload cut right after a count: the elements are missing.
+    let cut = &payload[..n_et_at + 8 + 10];
+    expect_bad(&wrap(cut), &["level 0 et needs 256 x 16 bytes"], LIMIT);
+    // Extra bytes at the end of the payload.
+    let mut pl = payload.to_vec();
+    pl.extend_from_slice(&[0; 3]);
+    expect_bad(&wrap(&pl), &["3 unexpected bytes"], 1 << 20);
+}
+
+/// Decoded values that the synthesis would choke on: each rejected with a message.
+#[test]
+fn crafted_invalid_values() {
+    let base = synthetic(16, 16, 2, false, 10);
+    let check = |a: Analysis, needle: &str| {
+        expect_bad(&a.to_bytes(), &[needle, "re-run `texsyn analyze`"], 1 << 20);
+    };
+
+    let mut a = base.clone();
+    a.channels = 2;
+    check(a, "channels is 2, expected 1 or 3");
+
+    let mut a = base.clone();
+    a.k = 0;
+    check(a, "k is 0, expected 1..=8");
+
+    let mut a = synthetic(16, 16, MAX_K + 1, false, 11);
+    a.k = MAX_K + 1;
+    check(a, "k is 9");
+
+    let mut a = base.clone();
+    a.levels.pop();
+    check(a, "level count is 4, expected 5");
+
+    let mut a = base.clone();
+    a.levels[2].spacing = 3;
+    check(a, "level 2 spacing is 3, expected 4");
+
+    let mut a = base.clone();
+    a.levels[1].shift = 32;
+    check(a, "level 1 shift is 32, expected < 32");
+
+    let mut a = base.clone();
+    a.levels[0].margin = 8;
+    check(a, "level 0 margin 8 leaves no valid region");
+
+    let mut a = base.clone();
+    a.colors.pop();
+    check(a, "colors has 255 entries, expected 256");
+
+    let mut a = base.clone();
+    a.levels[3].qe.push([0; DIM]);
+    check(a, "level 3 qe has 257 entries");
+
+    let mut a = base.clone();
+    a.levels[4].offsets.clear();
+    check(a, "level 4 offsets has 0 entries, expected 256");
+
+    // Tileable flag other than 0/1.
+    let bytes = base.to_bytes();
+    let mut pl = payload_of(&bytes).to_vec();
+    pl[12] = 2;
+    expect_bad(&wrap(&pl), &["tileable flag is 2"], 1 << 20);
+}

@@ -1,0 +1,148 @@
+//! The GPU passes against their CPU mirrors, pass by pass, on lavapipe.
+
+use std::sync::{Arc, OnceLock};
+
+use texsyn::analysis::{analyze, Analysis, AnalysisOptions, Exemplar};
+use texsyn::gpu::{synth::GpuSynthesizer, GpuContext};
+use texsyn::passes::plan::{PassKind, SynthPlan};
+use texsyn::passes::{run_cpu, synthesize_cpu};
+use texsyn::SynthParams;
+
+fn ctx() -> &'static GpuContext {
+    static CTX: OnceLock<GpuContext> = OnceLock::new();
+    CTX.get_or_init(|| GpuContext::headless().expect("a Vulkan adapter (lavapipe) is required for the tests"))
+}
+
+/// A crop of the bundled exemplar (small, so the tests stay fast).
+fn exemplar(w: u32, h: u32) -> Exemplar {
+    let full = texsyn::image_io::load_exemplar(std::path::Path::new("assets/gravel.png")).unwrap();
+    let c = full.channels as usize;
+    let mut values = Vec::new();
+    let mut colors = Vec::new();
+    for y in 0..h as usize {
+        for x in 0..w as usize {
+            let i = y * full.width as usize + x;
+            values.extend_from_slice(&full.values[i * c..(i + 1) * c]);
+            colors.push(full.colors[i]);
+        }
+    }
+    Exemplar { width: w, height: h, channels: full.channels, values, colors }
+}
+
+fn analysis(tileable: bool, k: u32) -> Arc<Analysis> {
+    static CACHE: OnceLock<std::sync::Mutex<Vec<((bool, u32), Arc<Analysis>)>>> = OnceLock::new();
+    let cache = CACHE.get_or_init(Default::default);
+    let mut c = cache.lock().unwrap();
+    if let Some((_, a)) = c.iter().find(|(key, _)| *key == (tileable, k)) {
+        return a.clone();
+    }
+    // Non-square, non-power-of-two on purpose.
+    let opts = AnalysisOptions { k, tileable: Some(tileable), ..Default::default() };
+    let a = Arc::new(analyze(&exemplar(40, 33), &opts, |_| {}).unwrap());
+    c.push(((tileable, k), a.clone()));
+    a
+}
+
+/// Runs every prefix that ends a pass of interest and compares the whole coordinate
+/// pyramid with the CPU mirror after the same dispatches.
+fn compare_pass_by_pass(a: Arc<Analysis>, params: &SynthParams) {
+    let gpu = GpuSynthesizer::new(ctx(), a.clone()).unwrap();
+    let plan = SynthPlan::new(&a, params).unwrap();
+    let schedule = plan.schedule(&a);
+    let mut cpu = vec![[0i32; 2]; plan.coord_count as usize];
+    let mut checked = std::collections::HashSet::new();
+    for (i, d) in schedule.iter().enumerate() {
+        run_cpu(&a, &schedule[i..i + 1], &mut cpu);
+        // Check the first dispatch of each kind at each level, and every dispatch at
+        // the finest level.
+        let finest = d.level + 1 == plan.levels.len();
+        if !(checked.insert((d.kind, d.level)) || finest) || d.kind == PassKind::Gather {
+            continue;
+        }
+        let g = gpu.run_prefix(ctx(), params, i + 1).unwrap();
+        assert_eq!(g.len(), cpu.len());
+        let diff = g.iter().zip(&cpu).filter(|(x, y)| x != y).count();
+        assert_eq!(diff, 0, "dispatch {i} ({:?} at level {}): {diff} coordinates differ", d.kind, d.level);
+    }
+    let host = gpu.synthesize_to_host(ctx(), params).unwrap();
+    let reference = synthesize_cpu(&a, params).unwrap();
+    assert_eq!(host, reference, "final coordinates and colours");
+}
+
+#[test]
+fn non_tileable_k2_matches_cpu_pass_by_pass() {
+    let params = SynthParams { width: 37, height: 29, seed: 11, ..Default::default() };
+    compare_pass_by_pass(analysis(false, 2), &params);
+}
+
+#[test]
+fn tileable_k3_window_matches_cpu_pass_by_pass() {
+    let params = SynthParams { width: 30, height: 41, origin: [-17, 23], seed: 5, passes: 1, coherence: 0.5, ..Default::default() };
+    compare_pass_by_pass(analysis(true, 3), &params);
+}
+
+#[test]
+fn k1_three_passes_custom_randomness_match_cpu() {
+    let a = analysis(false, 1);
+    let params = SynthParams { width: 64, height: 48, seed: 2, passes: 3, randomness: vec![1.0, 0.7, 0.3, 0.1], ..Default::default() };
+    let gpu = GpuSynthesizer::new(ctx(), a.clone()).unwrap();
+    assert_eq!(gpu.synthesize_to_host(ctx(), &params).unwrap(), synthesize_cpu(&a, &params).unwrap());
+}
+
+#[test]
+fn same_seed_same_bytes_other_seed_other_texture() {
+    let a = analysis(false, 2);
+    let gpu = GpuSynthesizer::new(ctx(), a).unwrap();
+    let p = SynthParams { width: 48, height: 48, seed: 9, ..Default::default() };
+    let x = gpu.synthesize_to_host(ctx(), &p).unwrap();
+    let y = gpu.synthesize_to_host(ctx(), &p).unwrap();
+    assert_eq!(x, y);
+    let z = gpu.synthesize_to_host(ctx(), &SynthParams { seed: 10, ..p.clone() }).unwrap();
+    let same = x.coords.iter().zip(&z.coords).filter(|(a, b)| a == b).count();
+    assert!(same < x.coords.len() / 4, "another seed must give another texture ({same} equal coordinates)");
+}
+
+#[test]
+fn gpu_texture_matches_host_readback() {
+    let a = analysis(true, 2);
+    let gpu = GpuSynthesizer::new(ctx(), a).unwrap();
+    let p = SynthParams { width: 33, height: 17, seed: 4, ..Default::default() };
+    let host = gpu.synthesize_to_host(ctx(), &p).unwrap();
+    let tex = gpu.synthesize(ctx(), &p).unwrap();
+    assert_eq!((tex.width, tex.height), (33, 17));
+    assert_eq!(tex.texture.format(), wgpu::TextureFormat::Rgba8Unorm);
+    // Encode into a caller's encoder twice; both results must be complete.
+    let mut enc = ctx().device.create_command_encoder(&Default::default());
+    let t1 = gpu.encode(ctx(), &mut enc, &p).unwrap();
+    let t2 = gpu.encode(ctx(), &mut enc, &SynthParams { seed: 5, ..p.clone() }).unwrap();
+    ctx().queue.submit([enc.finish()]);
+    ctx().wait_idle().unwrap();
+    let read = |t: &wgpu::Texture| -> Vec<[u8; 4]> {
+        let row = (t.width() * 4).next_multiple_of(256);
+        let buf = ctx().device.create_buffer(&wgpu::BufferDescriptor { label: None, size: (row * t.height()) as u64, usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST, mapped_at_creation: false });
+        let mut enc = ctx().device.create_command_encoder(&Default::default());
+        enc.copy_texture_to_buffer(t.as_image_copy(), wgpu::TexelCopyBufferInfo { buffer: &buf, layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(row), rows_per_image: None } }, t.size());
+        ctx().queue.submit([enc.finish()]);
+        buf.map_async(wgpu::MapMode::Read, .., |_| {});
+        ctx().wait_idle().unwrap();
+        let data = buf.get_mapped_range(..).unwrap();
+        (0..t.height()).flat_map(|y| data[(y * row) as usize..(y * row + t.width() * 4) as usize].chunks(4).map(|c| [c[0], c[1], c[2], c[3]]).collect::<Vec<_>>()).collect()
+    };
+    assert_eq!(read(&tex.texture), host.colors);
+    assert_eq!(read(&t1.texture), host.colors);
+    let other = gpu.synthesize_to_host(ctx(), &SynthParams { seed: 5, ..p }).unwrap();
+    assert_eq!(read(&t2.texture), other.colors);
+}
+
+#[test]
+fn windows_agree_on_their_overlap() {
+    let a = analysis(true, 2);
+    let base = SynthParams { width: 40, height: 40, seed: 3, ..Default::default() };
+    let whole = synthesize_cpu(&a, &base).unwrap();
+    let part = synthesize_cpu(&a, &SynthParams { width: 20, height: 25, origin: [13, 9], ..base.clone() }).unwrap();
+    for y in 0..25 {
+        for x in 0..20 {
+            assert_eq!(part.coords[y * 20 + x], whole.coords[(y + 9) * 40 + x + 13], "pixel ({x},{y}) of the window");
+        }
+    }
+}

@@ -1,0 +1,482 @@
+//! Exemplar loading, atomic writes, image and coordinate-map output.
+
+use std::path::{Path, PathBuf};
+
+use image::{DynamicImage, ImageBuffer, Luma, LumaA, Rgb, Rgba};
+use texsyn::image_io::{
+    exemplar_from_image, load_coords_exr, load_exemplar, save_coords_exr_atomic, save_image_atomic,
+    write_atomic,
+};
+use texsyn::Error;
+
+struct TempDir(PathBuf);
+impl TempDir {
+    fn new(tag: &str) -> Self {
+        let nanos = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .unwrap()
+            .as_nanos();
+        let d = std::env::temp_dir().join(format!(
+            "texsyn-test-imageio-{tag}-{}-{nanos}",
+            std::process::id()
+        ));
+        std::fs::create_dir_all(&d).unwrap();
+        TempDir(d)
+    }
+    fn join(&self, name: &str) -> PathBuf {
+        self.0.join(name)
+    }
+    /// Names of everything in the directory, sorted.
+    fn names(&self) -> Vec<String> {
+        let mut v: Vec<String> = std::fs::read_dir(&self.0)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        v.sort();
+        v
+    }
+}
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+fn save(img: &DynamicImage, path: &Path) {
+    img.save(path).unwrap();
+}
+
+fn bad_image(r: texsyn::Result<texsyn::Exemplar>, path: &Path) -> String {
+    match r {
+        Err(Error::BadImage { path: p, reason }) => {
+            assert_eq!(p, path);
+            assert!(!reason.is_empty());
+            reason
+        }
+        other => panic!("expected BadImage for {}, got {other:?}", path.display()),
+    }
+}
+
+#[test]
+fn load_rgb8() {
+    let dir = TempDir::new("rgb8");
+    let img = ImageBuffer::from_fn(20, 17, |x, y| Rgb([(x * 10) as u8, (y * 13) as u8, 200]));
+    let path = dir.join("rgb.png");
+    save(&DynamicImage::ImageRgb8(img), &path);
+    let ex = load_exemplar(&path).unwrap();
+    assert_eq!((ex.width, ex.height, ex.channels), (20, 17, 3));
+    assert_eq!(ex.values.len(), 20 * 17 * 3);
+    assert_eq!(ex.colors.len(), 20 * 17);
+    let i = (5 * 20 + 7) as usize; // x = 7, y = 5
+    assert_eq!(ex.colors[i], [70, 65, 200, 255]);
+    assert_eq!(
+        &ex.values[3 * i..3 * i + 3],
+        &[70.0 / 255.0, 65.0 / 255.0, 200.0 / 255.0]
+    );
+}
+
+#[test]
+fn load_grey16_keeps_precision() {
+    let dir = TempDir::new("grey16");
+    let img = ImageBuffer::from_fn(16, 16, |x, y| Luma([(x * 4096 + y * 3 + 1) as u16]));
+    let path = dir.join("g16.png");
+    save(&DynamicImage::ImageLuma16(img), &path);
+    let ex = load_exemplar(&path).unwrap();
+    assert_eq!((ex.width, ex.height, ex.channels), (16, 16, 1));
+    assert_eq!(ex.values.len(), 256);
+    let i = 2 * 16 + 3; // x = 3, y = 2
+    let v = 3 * 4096 + 2 * 3 + 1;
+    assert_eq!(ex.values[i], v as f32 / 65535.0);
+    // Neighbouring 16-bit values stay distinct (no 8-bit round trip).
+    assert_ne!(ex.values[0], ex.values[16]);
+    let c = ((v as u32 * 255 + 32767) / 65535) as u8;
+    assert_eq!(ex.colors[i], [c, c, c, 255]);
+}
+
+#[test]
+fn load_rgba_ignores_alpha() {
+    let dir = TempDir::new("rgba");
+    let img = ImageBuffer::from_fn(16, 18, |x, y| Rgba([x as u8, y as u8, 9, (x * 16) as u8]));
+    let path = dir.join("rgba.png");
+    save(&DynamicImage::ImageRgba8(img), &path);
+    let ex = load_exemplar(&path).unwrap();
+    assert_eq!((ex.width, ex.height, ex.channels), (16, 18, 3));
+    assert_eq!(ex.values.len(), 16 * 18 * 3);
+    assert!(ex.colors.iter().all(|c| c[3] == 255));
+    assert_eq!(ex.colors[16 + 2], [2, 1, 9, 255]);
+}
+
+#[test]
+fn load_grey_alpha() {
+    let dir = TempDir::new("greya");
+    let img = ImageBuffer::from_fn(17, 16, |x, _| LumaA([(x * 15) as u8, 0]));
+    let path = dir.join("ga.png");
+    save(&DynamicImage::ImageLumaA8(img), &path);
+    let ex = load_exemplar(&path).unwrap();
+    assert_eq!((ex.width, ex.height, ex.channels), (17, 16, 1));
+    assert_eq!(ex.values.len(), 17 * 16);
+    assert_eq!(ex.colors[4], [60, 60, 60, 255]);
+    assert_eq!(ex.values[4], 60.0 / 255.0);
+}
+
+#[test]
+fn format_is_decided_by_content() {
+    let dir = TempDir::new("content");
+    let img = DynamicImage::ImageRgb8(ImageBuffer::from_fn(16, 16, |x, y| {
+        Rgb([x as u8 * 8, y as u8 * 8, 0])
+    }));
+    let bmp = dir.join("real.bmp");
+    save(&img, &bmp);
+    let disguised = dir.join("disguised.png");
+    std::fs::rename(&bmp, &disguised).unwrap();
+    let ex = load_exemplar(&disguised).unwrap();
+    assert_eq!((ex.width, ex.height, ex.channels), (16, 16, 3));
+    assert_eq!(ex.colors[17], [8, 8, 0, 255]);
+    let noext = dir.join("noext");
+    std::fs::rename(&disguised, &noext).unwrap();
+    assert_eq!(load_exemplar(&noext).unwrap(), ex);
+}
+
+#[test]
+fn float_exemplar_is_clamped() {
+    let img = DynamicImage::ImageRgb32F(ImageBuffer::from_fn(16, 16, |x, _| {
+        Rgb([x as f32 / 10.0 - 0.3, 0.5, f32::NAN])
+    }));
+    let ex = exemplar_from_image(&img).unwrap();
+    assert_eq!(ex.channels, 3);
+    assert!(ex.values.iter().all(|v| (0.0..=1.0).contains(v)));
+    assert_eq!(&ex.values[0..3], &[0.0, 0.5, 0.0]);
+    assert_eq!(ex.values[15 * 3], 1.0);
+    assert_eq!(ex.colors[15], [255, 128, 0, 255]);
+}
+
+#[test]
+fn missing_file_is_io_error() {
+    let dir = TempDir::new("missing");
+    let path = dir.join("nope.png");
+    match load_exemplar(&path) {
+        Err(Error::Io { path: p, source }) => {
+            assert_eq!(p, path);
+            assert_eq!(source.kind(), std::io::ErrorKind::NotFound);
+        }
+        other => panic!("expected Io, got {other:?}"),
+    }
+}
+
+#[test]
+fn empty_text_and_truncated_files_are_bad_images() {
+    let dir = TempDir::new("bad");
+    let empty = dir.join("empty.png");
+    std::fs::write(&empty, b"").unwrap();
+    bad_image(load_exemplar(&empty), &empty);
+
+    let text = dir.join("text.png");
+    std::fs::write(&text, b"this is not an image, just some text\n").unwrap();
+    bad_image(load_exemplar(&text), &text);
+
+    let unknown = dir.join("text.xyz");
+    std::fs::write(&unknown, b"this is not an image, just some text\n").unwrap();
+    let reason = bad_image(load_exemplar(&unknown), &unknown);
+    assert!(reason.contains("format"), "{reason}");
+
+    let good = dir.join("good.png");
+    let img = ImageBuffer::from_fn(64, 64, |x, y| {
+        Rgb([(x * 7 + y) as u8, (y * 3) as u8, (x ^ y) as u8])
+    });
+    save(&DynamicImage::ImageRgb8(img), &good);
+    let bytes = std::fs::read(&good).unwrap();
+    for len in [8, 30, bytes.len() / 2, bytes.len() - 20] {
+        let cut = dir.join(&format!("cut{len}.png"));
+        std::fs::write(&cut, &bytes[..len]).unwrap();
+        bad_image(load_exemplar(&cut), &cut);
+    }
+
+    // Corrupt image data (checksums broken in the middle of the file).
+    let mut corrupt = bytes.clone();
+    let mid = corrupt.len() / 2;
+    for b in &mut corrupt[mid..mid + 16] {
+        *b ^= 0x5a;
+    }
+    let cpath = dir.join("corrupt.png");
+    std::fs::write(&cpath, &corrupt).unwrap();
+    bad_image(load_exemplar(&cpath), &cpath);
+
+    // A directory is not an image.
+    let sub = dir.join("sub.png");
+    std::fs::create_dir(&sub).unwrap();
+    assert!(load_exemplar(&sub).is_err());
+}
+
+#[test]
+fn too_small_exemplars() {
+    let dir = TempDir::new("small");
+    for (w, h) in [(1, 1), (15, 15), (16, 15), (15, 64)] {
+        let path = dir.join(&format!("s{w}x{h}.png"));
+        save(&DynamicImage::ImageRgb8(ImageBuffer::new(w, h)), &path);
+        match load_exemplar(&path) {
+            Err(Error::ExemplarTooSmall { width, height, min }) => {
+                assert_eq!((width, height, min), (w, h, 16));
+            }
+            other => panic!("expected ExemplarTooSmall for {w}x{h}, got {other:?}"),
+        }
+    }
+    let ok = dir.join("ok.png");
+    save(&DynamicImage::ImageLuma8(ImageBuffer::new(16, 16)), &ok);
+    assert!(load_exemplar(&ok).is_ok());
+}
+
+#[test]
+fn atomic_write_to_missing_directory() {
+    let dir = TempDir::new("atomic-missing");
+    let path = dir.join("no/such/dir/out.png");
+    let r = write_atomic(&path, |w| {
+        use std::io::Write;
+        w.write_all(b"data").unwrap();
+        Ok(())
+    });
+    match r {
+        Err(Error::Write { path: p, reason }) => {
+            assert_eq!(p, path);
+            assert!(reason.contains("does not exist"), "{reason}");
+        }
+        other => panic!("expected Write, got {other:?}"),
+    }
+    assert!(!path.exists());
+    assert!(dir.names().is_empty());
+}
+
+#[test]
+fn atomic_write_to_a_directory() {
+    let dir = TempDir::new("atomic-dir");
+    let target = dir.join("adir");
+    std::fs::create_dir(&target).unwrap();
+    let r = write_atomic(&target, |_| Ok(()));
+    assert!(matches!(r, Err(Error::Write { .. })), "{r:?}");
+    assert!(target.is_dir());
+    assert_eq!(dir.names(), vec!["adir".to_string()]);
+    // Also through the image saver.
+    let r = save_image_atomic(&dir.join("adir"), 1, 1, 4, &[0; 4]);
+    assert!(matches!(r, Err(Error::Write { .. })), "{r:?}");
+}
+
+#[test]
+fn failed_write_leaves_no_temp_and_keeps_old_content() {
+    use std::io::Write;
+    let dir = TempDir::new("atomic-fail");
+    let path = dir.join("out.bin");
+    std::fs::write(&path, b"old content").unwrap();
+
+    // The writer fails half way.
+    let r = write_atomic(&path, |w| {
+        w.write_all(&[1; 100_000]).unwrap();
+        Err(Error::InvalidParameter("simulated failure".into()))
+    });
+    match r {
+        Err(Error::Write { path: p, reason }) => {
+            assert_eq!(p, path);
+            assert!(reason.contains("simulated failure"), "{reason}");
+        }
+        other => panic!("expected Write, got {other:?}"),
+    }
+    assert_eq!(std::fs::read(&path).unwrap(), b"old content");
+    assert_eq!(dir.names(), vec!["out.bin".to_string()]);
+
+    // The writer panics.
+    let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        let _ = write_atomic(&path, |w| {
+            w.write_all(b"partial").unwrap();
+            panic!("simulated panic");
+        });
+    }));
+    assert!(r.is_err());
+    assert_eq!(std::fs::read(&path).unwrap(), b"old content");
+    assert_eq!(dir.names(), vec!["out.bin".to_string()]);
+
+    // A successful write replaces the content and leaves only the target.
+    write_atomic(&path, |w| {
+        w.write_all(b"new").map_err(|e| Error::Write {
+            path: path.clone(),
+            reason: e.to_string(),
+        })
+    })
+    .unwrap();
+    assert_eq!(std::fs::read(&path).unwrap(), b"new");
+    assert_eq!(dir.names(), vec!["out.bin".to_string()]);
+}
+
+#[test]
+fn write_to_empty_path_is_error() {
+    let r = write_atomic(Path::new(""), |_| Ok(()));
+    assert!(matches!(r, Err(Error::Write { .. })), "{r:?}");
+}
+
+fn pattern_rgba(w: u32, h: u32) -> Vec<u8> {
+    (0..w * h)
+        .flat_map(|i| {
+            let (x, y) = (i % w, i / w);
+            [
+                (x * 9) as u8,
+                (y * 5) as u8,
+                ((x + y) * 3) as u8,
+                (100 + x) as u8,
+            ]
+        })
+        .collect()
+}
+
+#[test]
+fn save_image_png_grey_rgb_rgba() {
+    let dir = TempDir::new("saveimg");
+    let (w, h) = (19, 16);
+    let rgba = pattern_rgba(w, h);
+
+    let p1 = dir.join("g.png");
+    save_image_atomic(&p1, w, h, 1, &rgba).unwrap();
+    let img = image::open(&p1).unwrap();
+    assert!(matches!(img, DynamicImage::ImageLuma8(_)));
+    assert_eq!(
+        img.to_luma8().into_raw(),
+        rgba.chunks(4).map(|p| p[0]).collect::<Vec<_>>()
+    );
+
+    let p3 = dir.join("c.png");
+    save_image_atomic(&p3, w, h, 3, &rgba).unwrap();
+    let img = image::open(&p3).unwrap();
+    assert!(matches!(img, DynamicImage::ImageRgb8(_)));
+    let rgb: Vec<u8> = rgba.chunks(4).flat_map(|p| [p[0], p[1], p[2]]).collect();
+    assert_eq!(img.to_rgb8().into_raw(), rgb);
+
+    let p4 = dir.join("a.png");
+    save_image_atomic(&p4, w, h, 4, &rgba).unwrap();
+    let img = image::open(&p4).unwrap();
+    assert!(matches!(img, DynamicImage::ImageRgba8(_)));
+    assert_eq!(img.to_rgba8().into_raw(), rgba);
+
+    // No extension: PNG.
+    let p0 = dir.join("noext");
+    save_image_atomic(&p0, w, h, 3, &rgba).unwrap();
+    assert_eq!(
+        image::ImageReader::open(&p0)
+            .unwrap()
+            .with_guessed_format()
+            .unwrap()
+            .format(),
+        Some(image::ImageFormat::Png)
+    );
+
+    assert_eq!(dir.names(), vec!["a.png", "c.png", "g.png", "noext"]);
+}
+
+#[test]
+fn save_image_every_supported_extension() {
+    let dir = TempDir::new("saveall");
+    let (w, h) = (16, 16);
+    let rgba = pattern_rgba(w, h);
+    let lossless = [
+        "png", "bmp", "tga", "tif", "tiff", "webp", "pnm", "ppm", "pam",
+    ];
+    for ext in [
+        "png", "jpg", "jpeg", "bmp", "tga", "tif", "tiff", "webp", "gif", "pnm", "ppm", "pgm",
+        "pam", "exr", "hdr",
+    ] {
+        for channels in [1, 3, 4] {
+            let path = dir.join(&format!("out{channels}.{ext}"));
+            save_image_atomic(&path, w, h, channels, &rgba)
+                .unwrap_or_else(|e| panic!("{ext} with {channels} channels: {e}"));
+            let ex = load_exemplar(&path)
+                .unwrap_or_else(|e| panic!("reading back {ext}/{channels}: {e}"));
+            assert_eq!((ex.width, ex.height), (w, h), "{ext}");
+            if lossless.contains(&ext) && channels == 3 {
+                let rgb: Vec<[u8; 4]> = rgba.chunks(4).map(|p| [p[0], p[1], p[2], 255]).collect();
+                assert_eq!(ex.colors, rgb, "{ext}");
+            }
+        }
+    }
+    assert!(
+        !dir.names().iter().any(|n| n.starts_with('.')),
+        "temporary files left: {:?}",
+        dir.names()
+    );
+}
+
+#[test]
+fn save_image_rejects_bad_parameters() {
+    let dir = TempDir::new("savebad");
+    let rgba = pattern_rgba(4, 4);
+    match save_image_atomic(&dir.join("x.xyz"), 4, 4, 3, &rgba) {
+        Err(Error::InvalidParameter(msg)) => {
+            assert!(
+                msg.contains(".xyz") && msg.contains("png") && msg.contains("jpg"),
+                "{msg}"
+            );
+        }
+        other => panic!("expected InvalidParameter, got {other:?}"),
+    }
+    assert!(matches!(
+        save_image_atomic(&dir.join("x.png"), 4, 4, 2, &rgba),
+        Err(Error::InvalidParameter(_))
+    ));
+    assert!(matches!(
+        save_image_atomic(&dir.join("x.png"), 4, 5, 3, &rgba),
+        Err(Error::InvalidParameter(_))
+    ));
+    assert!(matches!(
+        save_image_atomic(&dir.join("x.png"), 0, 0, 3, &[]),
+        Err(Error::InvalidParameter(_))
+    ));
+    assert!(dir.names().is_empty());
+}
+
+#[test]
+fn coords_exr_round_trip() {
+    let dir = TempDir::new("exr");
+    let (w, h) = (37u32, 23u32);
+    let coords: Vec<[i32; 2]> = (0..w * h)
+        .map(|i| [(i * 7919 % 4099) as i32, (i * 31 % 2053) as i32 - 5])
+        .collect();
+    let path = dir.join("coords.exr");
+    save_coords_exr_atomic(&path, w, h, &coords).unwrap();
+
+    let img = image::open(&path).unwrap();
+    let f = img.to_rgb32f();
+    assert_eq!(
+        f.get_pixel(1, 0).0,
+        [coords[1][0] as f32, coords[1][1] as f32, 0.0]
+    );
+
+    let (rw, rh, back) = load_coords_exr(&path).unwrap();
+    assert_eq!((rw, rh), (w, h));
+    assert_eq!(back, coords);
+
+    // Overwrite in place.
+    let zeros = vec![[0, 0]; (w * h) as usize];
+    save_coords_exr_atomic(&path, w, h, &zeros).unwrap();
+    assert_eq!(load_coords_exr(&path).unwrap().2, zeros);
+    assert_eq!(dir.names(), vec!["coords.exr"]);
+
+    // Wrong length.
+    assert!(matches!(
+        save_coords_exr_atomic(&dir.join("bad.exr"), w, h, &coords[1..]),
+        Err(Error::InvalidParameter(_))
+    ));
+
+    // An 8-bit image is not a coordinate map; a missing file is Io.
+    let png = dir.join("p.png");
+    save_image_atomic(&png, 4, 4, 3, &pattern_rgba(4, 4)).unwrap();
+    assert!(matches!(load_coords_exr(&png), Err(Error::BadImage { .. })));
+    assert!(matches!(
+        load_coords_exr(&dir.join("none.exr")),
+        Err(Error::Io { .. })
+    ));
+}
+
+#[test]
+fn coords_exr_rounds_to_nearest() {
+    let dir = TempDir::new("exr-round");
+    let path = dir.join("f.exr");
+    let img = ImageBuffer::from_fn(2, 1, |x, _| Rgba([x as f32 + 0.6, 2.4, 0.0, 1.0]));
+    DynamicImage::ImageRgba32F(img).save(&path).unwrap();
+    let (w, h, c) = load_coords_exr(&path).unwrap();
+    assert_eq!((w, h), (2, 1));
+    assert_eq!(c, vec![[1, 2], [2, 2]]);
+}
