@@ -27,7 +27,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (any(q >= params.size)) {
         return;
     }
-    let h = params.spacing;
+    let h = params.step;
 
     // Synthesized neighbourhood: per diagonal, the sum of three predictions, projected.
     var acc = array<i32, 8>(0, 0, 0, 0, 0, 0, 0, 0);
@@ -78,7 +78,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
                 if (!is_valid(raw)) {
                     continue;
                 }
-                let c = fit_coord(raw);
+                let c = fit_near(raw);
                 var dist = cand_distance(ns_lo, ns_hi, c);
                 if (i > 0) {
                     dist += (dist >> 4u) * params.coherence;

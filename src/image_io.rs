@@ -216,9 +216,17 @@ fn decode_image(path: &Path) -> Result<DynamicImage> {
                 .into(),
         });
     }
-    reader.decode().map_err(|e| Error::BadImage {
-        path: path.to_path_buf(),
-        reason: e.to_string(),
+    reader.decode().map_err(|e| {
+        let reason = match &e {
+            image::ImageError::IoError(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => {
+                format!("the file is truncated ({e})")
+            }
+            _ => e.to_string(),
+        };
+        Error::BadImage {
+            path: path.to_path_buf(),
+            reason,
+        }
     })
 }
 

@@ -129,7 +129,7 @@ where
             Some(Err(message)) => return Err(error(message)),
             Some(Ok(path)) => {
                 let path = normalize(path).map_err(&error)?;
-                if out.files.iter().any(|seen| *seen == path) {
+                if out.files.contains(&path) {
                     continue; // included at most once per shader
                 }
                 let included = read(&path)

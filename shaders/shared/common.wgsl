@@ -8,6 +8,8 @@ struct Params {
     parent_origin: vec2<i32>,
     parent_size: vec2<i32>,
     parity: vec2<i32>,
+    // h_l modulo the exemplar size per axis when tileable, h_l otherwise.
+    step: vec2<i32>,
     spacing: i32,
     tileable: i32,
     margin: i32,
@@ -24,7 +26,7 @@ struct Params {
     parent_coord_base: u32,
     window_offset: vec2<i32>,
     window_size: vec2<i32>,
-    _pad: vec2<u32>,
+    _pad: vec4<u32>,
 }
 
 @group(0) @binding(0) var<uniform> params: Params;
@@ -73,9 +75,29 @@ fn fit_coord(c: vec2<i32>) -> vec2<i32> {
     return clamp(c, vec2<i32>(params.margin), params.ex_size - vec2<i32>(1 + params.margin));
 }
 
+// wrap() for c in [-2n, 3n) without integer division, which CPU Vulkan drivers
+// scalarize; the correction's coordinates always stay in that range.
+fn wrap_near(c: vec2<i32>) -> vec2<i32> {
+    let n = params.ex_size;
+    let z = vec2<i32>(0);
+    var v = c;
+    v += select(z, n, v < z);
+    v += select(z, n, v < z);
+    v -= select(z, n, v >= n);
+    v -= select(z, n, v >= n);
+    return v;
+}
+
+fn fit_near(c: vec2<i32>) -> vec2<i32> {
+    if (params.tileable != 0) {
+        return wrap_near(c);
+    }
+    return fit_coord(c);
+}
+
 fn read_coord(c: vec2<i32>) -> vec2<i32> {
     if (params.tileable != 0) {
-        return vec2<i32>(wrap(c.x, params.ex_size.x), wrap(c.y, params.ex_size.y));
+        return wrap_near(c);
     }
     return clamp(c, vec2<i32>(0), params.ex_size - vec2<i32>(1));
 }

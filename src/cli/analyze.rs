@@ -43,7 +43,12 @@ pub struct AnalyzeArgs {
 
 pub fn run(ui: &Ui, args: AnalyzeArgs) -> CliResult<()> {
     check_output_dir(&args.output)?;
-    let options = AnalysisOptions { k: args.k, tileable: args.tile.get(), exclusion_radius: args.exclusion, threads: args.threads };
+    let options = AnalysisOptions {
+        k: args.k,
+        tileable: args.tile.get(),
+        exclusion_radius: args.exclusion,
+        threads: args.threads,
+    };
 
     let t0 = Instant::now();
     let exemplar = texsyn::image_io::load_exemplar(&args.exemplar)?;
@@ -57,7 +62,9 @@ pub fn run(ui: &Ui, args: AnalyzeArgs) -> CliResult<()> {
     analysis.save(&args.output)?;
     let save_time = t2.elapsed();
 
-    let size = std::fs::metadata(&args.output).map(|m| m.len()).unwrap_or(0);
+    let size = std::fs::metadata(&args.output)
+        .map(|m| m.len())
+        .unwrap_or(0);
     print_summary(ui, &args, &options, &analysis);
     ui.info(format!(
         "time: load {}, analysis {}, save {}; wrote {} ({})",
@@ -74,10 +81,26 @@ fn print_summary(ui: &Ui, args: &AnalyzeArgs, options: &AnalysisOptions, a: &Ana
     if ui.quiet {
         return;
     }
-    ui.info(format!("exemplar: {}, {}x{} {}", args.exemplar.display(), a.width, a.height, channels_name(a.channels)));
-    let how = if options.tileable.is_some() { "forced" } else { "detected" };
-    ui.info(format!("tileable: {} ({how})", if a.tileable { "yes" } else { "no" }));
-    ui.info(format!("k: {}, exclusion radius: {}", a.k, options.exclusion_radius));
+    ui.info(format!(
+        "exemplar: {}, {}x{} {}",
+        args.exemplar.display(),
+        a.width,
+        a.height,
+        channels_name(a.channels)
+    ));
+    let how = if options.tileable.is_some() {
+        "forced"
+    } else {
+        "detected"
+    };
+    ui.info(format!(
+        "tileable: {} ({how})",
+        if a.tileable { "yes" } else { "no" }
+    ));
+    ui.info(format!(
+        "k: {}, exclusion radius: {}",
+        a.k, options.exclusion_radius
+    ));
     print_levels(ui, a);
 }
 

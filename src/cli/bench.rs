@@ -6,12 +6,13 @@ use std::time::{Duration, Instant};
 
 use clap::Args;
 
-use texsyn::analysis::{self, Analysis, AnalysisOptions};
+use texsyn::analysis::{self, AnalysisOptions};
 use texsyn::gpu::synth::GpuSynthesizer;
 use texsyn::gpu::GpuContext;
 use texsyn::passes::SynthParams;
 
-use super::{channels_name, check_output_size, fmt_duration, parse_sizes, CliResult, Ui};
+use super::synth::{cli_hint, read_source, Source};
+use super::{channels_name, check_output_size, fmt_duration, parse_sizes, CliResult, Sizes, Ui};
 
 /// Exemplars up to this many pixels are analysed several times and the median reported.
 const REPEAT_ANALYSIS_PIXELS: u64 = 256 * 256;
@@ -19,19 +20,21 @@ const ANALYSIS_RUNS: usize = 3;
 
 /// Time the analysis and the GPU synthesis at several output sizes; prints a table
 #[derive(Args, Debug)]
-#[command(long_about = "Time the analysis and the GPU synthesis at several output sizes; prints a table on stdout.\n\n\
+#[command(
+    long_about = "Time the analysis and the GPU synthesis at several output sizes; prints a table on stdout.\n\n\
                   For each size: GPU synthesis time (submit + wait for the device, nothing read \
                   back) after the warm-up runs, as median, min and max of --runs runs, and \
                   output pixels per second from the median; then the median of as many whole \
                   syntheses including the read-back of colours and coordinates to the host. A \
-                  size the device cannot handle shows its error in its row.")]
+                  size the device cannot handle shows its error in its row."
+)]
 pub struct BenchArgs {
     /// Exemplar image, or an analysis file (then the load time is reported instead)
     pub exemplar: PathBuf,
 
     /// Output sizes, comma-separated, each N or WxH
     #[arg(long, value_name = "N[xM],...", default_value = "256,512,1024,2048", value_parser = parse_sizes)]
-    pub sizes: Vec<[u32; 2]>,
+    pub sizes: Sizes,
 
     /// Timed runs per size (at least 1)
     #[arg(long, value_name = "N", default_value_t = 7, value_parser = clap::value_parser!(u32).range(1..=10_000))]
@@ -60,12 +63,24 @@ struct Stats {
 fn stats(mut times: Vec<Duration>) -> Stats {
     times.sort();
     let n = times.len();
-    let median = if n % 2 == 1 { times[n / 2] } else { (times[n / 2 - 1] + times[n / 2]) / 2 };
-    Stats { median, min: times[0], max: times[n - 1] }
+    let median = if n % 2 == 1 {
+        times[n / 2]
+    } else {
+        (times[n / 2 - 1] + times[n / 2]) / 2
+    };
+    Stats {
+        median,
+        min: times[0],
+        max: times[n - 1],
+    }
 }
 
 /// Runs `f` `warmup` times untimed, then `runs` times timed.
-fn time_runs(warmup: u32, runs: u32, mut f: impl FnMut() -> texsyn::Result<()>) -> texsyn::Result<Stats> {
+fn time_runs(
+    warmup: u32,
+    runs: u32,
+    mut f: impl FnMut() -> texsyn::Result<()>,
+) -> texsyn::Result<Stats> {
     for _ in 0..warmup {
         f()?;
     }
@@ -79,41 +94,54 @@ fn time_runs(warmup: u32, runs: u32, mut f: impl FnMut() -> texsyn::Result<()>) 
 }
 
 pub fn run(ui: &Ui, args: BenchArgs) -> CliResult<()> {
-    let ctx = GpuContext::headless()?;
-    let from_file = texsyn::session::is_analysis_file(&args.exemplar)?;
-    let (analysis, analysis_line) = if from_file {
-        let t = Instant::now();
-        let a = Analysis::load(&args.exemplar)?;
-        let line = format!("analysis: loaded from file in {} (1 run)", fmt_duration(t.elapsed()));
-        (a, line)
-    } else {
-        let ex = texsyn::image_io::load_exemplar(&args.exemplar)?;
-        let opts = AnalysisOptions::default();
-        let runs = if ex.width as u64 * ex.height as u64 <= REPEAT_ANALYSIS_PIXELS { ANALYSIS_RUNS } else { 1 };
-        let mut times = Vec::new();
-        let mut result = None;
-        for i in 0..runs {
-            ui.progress(format!("analysis run {}/{runs}", i + 1));
-            let t = Instant::now();
-            let a = analysis::analyze(&ex, &opts, |_| {})?;
-            times.push(t.elapsed());
-            result = Some(a);
-        }
-        ui.end_progress();
-        let s = stats(times);
-        let line = if runs == 1 {
-            format!("analysis: {} (1 run, {} threads)", fmt_duration(s.median), threads())
-        } else {
+    let t = Instant::now();
+    let source = read_source(&args.exemplar, None, None)?;
+    let read_time = t.elapsed();
+    let (analysis, analysis_line) = match source {
+        Source::Analysis(a) => (
+            a,
             format!(
-                "analysis: {} (median of {runs} runs, min {}, max {}; {} threads)",
-                fmt_duration(s.median),
-                fmt_duration(s.min),
-                fmt_duration(s.max),
-                threads()
-            )
-        };
-        (result.expect("at least one run"), line)
+                "analysis: loaded from an analysis file in {}",
+                fmt_duration(read_time)
+            ),
+        ),
+        Source::Image(ex) => {
+            let opts = AnalysisOptions::default();
+            let runs = if ex.width as u64 * ex.height as u64 <= REPEAT_ANALYSIS_PIXELS {
+                ANALYSIS_RUNS
+            } else {
+                1
+            };
+            let mut times = Vec::new();
+            let mut result = None;
+            for i in 0..runs {
+                ui.progress(format!("analysis run {}/{runs}", i + 1));
+                let t = Instant::now();
+                let a = analysis::analyze(&ex, &opts, |_| {})?;
+                times.push(t.elapsed());
+                result = Some(a);
+            }
+            ui.end_progress();
+            let s = stats(times);
+            let line = if runs == 1 {
+                format!(
+                    "analysis: {} (1 run, {} threads)",
+                    fmt_duration(s.median),
+                    threads()
+                )
+            } else {
+                format!(
+                    "analysis: {} (median of {runs} runs, min {}, max {}; {} threads)",
+                    fmt_duration(s.median),
+                    fmt_duration(s.min),
+                    fmt_duration(s.max),
+                    threads()
+                )
+            };
+            (result.expect("at least one run"), line)
+        }
     };
+    let ctx = GpuContext::headless()?;
 
     let t = Instant::now();
     let summary = format!(
@@ -143,26 +171,33 @@ pub fn run(ui: &Ui, args: BenchArgs) -> CliResult<()> {
         "size", "GPU median", "GPU min", "GPU max", "Mpixel/s", "incl. read-back"
     ))?;
 
-    for &[w, h] in &args.sizes {
+    for &[w, h] in &args.sizes.0 {
         let size = format!("{w}x{h}");
         ui.progress(format!("benchmarking {size}"));
-        let params = SynthParams { width: w, height: h, seed: args.seed, passes: args.passes, ..SynthParams::default() };
-        let row = check_output_size(&ctx, w, h)
-            .and_then(|()| {
-                let gpu = time_runs(args.warmup, args.runs, || {
-                    synthesizer.synthesize(&ctx, &params)?;
-                    ctx.take_uncaptured_errors()
-                })?;
-                let whole = time_runs(args.warmup.min(1), args.runs, || {
-                    synthesizer.synthesize_to_host(&ctx, &params)?;
-                    ctx.take_uncaptured_errors()
-                })?;
-                Ok((gpu, whole))
-            });
+        let params = SynthParams {
+            width: w,
+            height: h,
+            seed: args.seed,
+            passes: args.passes,
+            ..SynthParams::default()
+        };
+        let row = check_output_size(&ctx, w, h).and_then(|()| {
+            let gpu = time_runs(args.warmup, args.runs, || {
+                synthesizer.synthesize(&ctx, &params).map_err(cli_hint)?;
+                ctx.take_uncaptured_errors()
+            })?;
+            let whole = time_runs(args.warmup.min(1), args.runs, || {
+                synthesizer
+                    .synthesize_to_host(&ctx, &params)
+                    .map_err(cli_hint)?;
+                ctx.take_uncaptured_errors()
+            })?;
+            Ok((gpu, whole))
+        });
         ui.end_progress();
         let line = match row {
             Ok((gpu, whole)) => format!(
-                "{:<11} {:>11} {:>11} {:>11} {:>11.2} {:>16}",
+                "{:<11} {:>11} {:>11} {:>11} {:>11.3} {:>16}",
                 size,
                 fmt_duration(gpu.median),
                 fmt_duration(gpu.min),
@@ -178,5 +213,7 @@ pub fn run(ui: &Ui, args: BenchArgs) -> CliResult<()> {
 }
 
 fn threads() -> usize {
-    std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1)
+    std::thread::available_parallelism()
+        .map(|n| n.get())
+        .unwrap_or(1)
 }

@@ -10,14 +10,16 @@ use super::{fail, CliResult, TileArgs, Ui};
 
 /// Print quality figures of a synthesized image against its exemplar as JSON on stdout
 #[derive(Args, Debug)]
-#[command(long_about = "Print quality figures of a synthesized image against its exemplar as JSON on stdout.\n\n\
+#[command(
+    long_about = "Print quality figures of a synthesized image against its exemplar as JSON on stdout.\n\n\
                   texture_energy: mean squared difference of each 7x7 output neighbourhood to the \
                   nearest exemplar neighbourhood, at full, half and quarter resolution (null \
                   where the images are too small); histogram_emd: earth mover's distance \
                   between the colour histograms, per channel and mean; verbatim (with \
                   --coords): how much of the output is verbatim copy of the exemplar \
                   (coherent neighbour pairs, largest copied region), else null. Lower \
-                  energy and EMD are better.")]
+                  energy and EMD are better."
+)]
 pub struct EvalArgs {
     /// The exemplar image (not an analysis file: the figures compare pixels)
     pub exemplar: PathBuf,
@@ -61,9 +63,17 @@ pub fn run(ui: &Ui, args: EvalArgs) -> CliResult<()> {
             Some((w, h, c))
         }
     };
-    let tileable = args.tile.get().unwrap_or_else(|| texsyn::analysis::detect_tileable(&exemplar));
+    let tileable = args
+        .tile
+        .get()
+        .unwrap_or_else(|| texsyn::analysis::detect_tileable(&exemplar));
     let exemplar = FloatImage::from_exemplar(&exemplar);
-    let map = coords.as_ref().map(|(w, h, c)| CoordMap { coords: c, width: *w, height: *h, tileable });
+    let map = coords.as_ref().map(|(w, h, c)| CoordMap {
+        coords: c,
+        width: *w,
+        height: *h,
+        tileable,
+    });
 
     let report = quality::evaluate(&exemplar, &output, quality::DEFAULT_RADIUS, map)?;
     ui.out(report.to_json())
@@ -71,12 +81,21 @@ pub fn run(ui: &Ui, args: EvalArgs) -> CliResult<()> {
 
 /// Any image the `image` crate reads, as floats.
 fn load_image(path: &Path) -> CliResult<FloatImage> {
-    let bad = |reason: String| texsyn::Error::BadImage { path: path.to_path_buf(), reason };
-    let io = |source| texsyn::Error::Io { path: path.to_path_buf(), source };
+    let bad = |reason: String| texsyn::Error::BadImage {
+        path: path.to_path_buf(),
+        reason,
+    };
+    let io = |source| texsyn::Error::Io {
+        path: path.to_path_buf(),
+        source,
+    };
     if path.is_dir() {
         return Err(bad("it is a directory, not an image file".into()).into());
     }
-    let reader = image::ImageReader::open(path).map_err(io)?.with_guessed_format().map_err(io)?;
+    let reader = image::ImageReader::open(path)
+        .map_err(io)?
+        .with_guessed_format()
+        .map_err(io)?;
     if std::fs::metadata(path).map(|m| m.len()).map_err(io)? == 0 {
         return Err(bad("the file is empty".into()).into());
     }

@@ -110,7 +110,11 @@ pub struct Ui {
 
 impl Ui {
     fn new(quiet: bool) -> Self {
-        Ui { quiet, tty: std::io::stderr().is_terminal(), open_line: std::cell::Cell::new(false) }
+        Ui {
+            quiet,
+            tty: std::io::stderr().is_terminal(),
+            open_line: std::cell::Cell::new(false),
+        }
     }
 
     /// A line of information on stderr (silenced by `--quiet`).
@@ -176,7 +180,12 @@ pub fn parse_size(s: &str) -> Result<[u32; 2], String> {
         if p.is_empty() || !p.bytes().all(|b| b.is_ascii_digit()) {
             return Err(usage());
         }
-        let v: u32 = p.parse().map_err(|_| format!("size \"{s}\": {p} is too large (at most {} pixels a side)", u32::MAX))?;
+        let v: u32 = p.parse().map_err(|_| {
+            format!(
+                "size \"{s}\": {p} is too large (at most {} pixels a side)",
+                u32::MAX
+            )
+        })?;
         if v == 0 {
             return Err(format!("size \"{s}\": width and height must be at least 1"));
         }
@@ -192,32 +201,44 @@ pub fn parse_size(s: &str) -> Result<[u32; 2], String> {
     }
 }
 
+/// A list of sizes (a newtype: clap treats a bare `Vec` field as repeated values).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Sizes(pub Vec<[u32; 2]>);
+
 /// A comma-separated list of sizes.
-pub fn parse_sizes(s: &str) -> Result<Vec<[u32; 2]>, String> {
+pub fn parse_sizes(s: &str) -> Result<Sizes, String> {
     let sizes: Vec<[u32; 2]> = s.split(',').map(parse_size).collect::<Result<_, _>>()?;
     if sizes.is_empty() {
         return Err("give at least one size".into());
     }
-    Ok(sizes)
+    Ok(Sizes(sizes))
 }
 
+/// Per-level randomness values (a newtype, see [`Sizes`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Randomness(pub Vec<f32>);
+
 /// `R` or `R0,R1,...`: finite values in [0, 2].
-pub fn parse_randomness(s: &str) -> Result<Vec<f32>, String> {
+pub fn parse_randomness(s: &str) -> Result<Randomness, String> {
     let mut out = Vec::new();
     for part in s.split(',') {
         let p = part.trim();
-        let v: f32 = p.parse().map_err(|_| format!("\"{p}\" is not a number (expected R or R0,R1,... with values in [0, 2])"))?;
+        let v: f32 = p.parse().map_err(|_| {
+            format!("\"{p}\" is not a number (expected R or R0,R1,... with values in [0, 2])")
+        })?;
         if !v.is_finite() || !(0.0..=2.0).contains(&v) {
             return Err(format!("randomness {p} must be between 0 and 2"));
         }
         out.push(v);
     }
-    Ok(out)
+    Ok(Randomness(out))
 }
 
 /// `X,Y` (integers, may be negative).
 pub fn parse_window(s: &str) -> Result<[i32; 2], String> {
-    let usage = || format!("\"{s}\" is not a window origin: expected X,Y (integers, e.g. 0,0 or -512,1024)");
+    let usage = || {
+        format!("\"{s}\" is not a window origin: expected X,Y (integers, e.g. 0,0 or -512,1024)")
+    };
     let parts: Vec<&str> = s.split(',').collect();
     let [x, y] = parts.as_slice() else {
         return Err(usage());
@@ -227,14 +248,19 @@ pub fn parse_window(s: &str) -> Result<[i32; 2], String> {
     // Keep well inside i32 so the plan's margins cannot overflow.
     const LIMIT: i32 = 1 << 28;
     if x.abs() > LIMIT || y.abs() > LIMIT {
-        return Err(format!("window origin {x},{y}: coordinates must lie within +-{LIMIT}"));
+        return Err(format!(
+            "window origin {x},{y}: coordinates must lie within +-{LIMIT}"
+        ));
     }
     Ok([x, y])
 }
 
 /// Coherence in [0, 1].
 pub fn parse_coherence(s: &str) -> Result<f32, String> {
-    let v: f32 = s.trim().parse().map_err(|_| format!("\"{s}\" is not a number"))?;
+    let v: f32 = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("\"{s}\" is not a number"))?;
     if !v.is_finite() || !(0.0..=1.0).contains(&v) {
         return Err(format!("coherence {s} must be between 0 and 1"));
     }
@@ -245,10 +271,16 @@ pub fn parse_coherence(s: &str) -> Result<f32, String> {
 /// (The file itself is only written, atomically, once the work has succeeded.)
 pub fn check_output_dir(path: &Path) -> CliResult<()> {
     if path.file_name().is_none() {
-        return Err(fail(format!("cannot write {}: the path does not name a file", path.display())));
+        return Err(fail(format!(
+            "cannot write {}: the path does not name a file",
+            path.display()
+        )));
     }
     if path.is_dir() {
-        return Err(fail(format!("cannot write {}: it is a directory; give a file name", path.display())));
+        return Err(fail(format!(
+            "cannot write {}: it is a directory; give a file name",
+            path.display()
+        )));
     }
     let dir = match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
@@ -256,9 +288,17 @@ pub fn check_output_dir(path: &Path) -> CliResult<()> {
     };
     if !dir.is_dir() {
         return Err(fail(if dir.exists() {
-            format!("cannot write {}: {} is not a directory", path.display(), dir.display())
+            format!(
+                "cannot write {}: {} is not a directory",
+                path.display(),
+                dir.display()
+            )
         } else {
-            format!("cannot write {}: directory {} does not exist; create it first", path.display(), dir.display())
+            format!(
+                "cannot write {}: directory {} does not exist; create it first",
+                path.display(),
+                dir.display()
+            )
         }));
     }
     Ok(())
@@ -298,18 +338,39 @@ pub fn channels_name(channels: u32) -> &'static str {
     }
 }
 
-/// The error the library gives for an output larger than the device, checked before
-/// the plan is built (the plan rejects huge outputs with a less specific message).
-pub fn check_output_size(ctx: &texsyn::gpu::GpuContext, width: u32, height: u32) -> texsyn::Result<()> {
-    let max_dim = ctx.limits().max_texture_dimension_2d;
+/// Hint of the "output too large" errors.
+pub const WINDOW_HINT: &str = "synthesize it in windows (--window X,Y) and assemble them";
+
+/// The error the library gives for an output larger than the device, checked early:
+/// before the analysis (the library checks once the plan exists, i.e. after it) and
+/// before the plan (which rejects huge outputs with a less specific message). The
+/// buffer check is a lower bound (the finest level alone); the library checks the
+/// whole pyramid.
+pub fn check_output_size(
+    ctx: &texsyn::gpu::GpuContext,
+    width: u32,
+    height: u32,
+) -> texsyn::Result<()> {
+    let limits = ctx.limits();
+    let max_dim = limits.max_texture_dimension_2d;
+    let too_large = |limit: String| texsyn::Error::TooLarge {
+        what: "output",
+        width,
+        height,
+        limit,
+        hint: WINDOW_HINT,
+    };
     if width > max_dim || height > max_dim {
-        return Err(texsyn::Error::TooLarge {
-            what: "output",
-            width,
-            height,
-            limit: format!("at most {max_dim} pixels a side"),
-            hint: "synthesize it in windows (--window) and assemble them",
-        });
+        return Err(too_large(format!("at most {max_dim} pixels a side")));
+    }
+    let bytes = width as u64 * height as u64 * 8;
+    let max = (limits.max_storage_buffer_binding_size as u64).min(limits.max_buffer_size);
+    if bytes > max {
+        return Err(too_large(format!(
+            "its coordinate pyramid needs more than {} MiB in one buffer, the device allows {} MiB",
+            bytes >> 20,
+            max >> 20
+        )));
     }
     Ok(())
 }
@@ -323,17 +384,37 @@ mod tests {
         assert_eq!(parse_size("64"), Ok([64, 64]));
         assert_eq!(parse_size("64x32"), Ok([64, 32]));
         assert_eq!(parse_size(" 7X9 "), Ok([7, 9]));
-        for bad in ["0", "0x5", "5x0", "", "x", "abc", "5x", "x5", "1x2x3", "-4", "+4", "4.5", "99999999999"] {
+        for bad in [
+            "0",
+            "0x5",
+            "5x0",
+            "",
+            "x",
+            "abc",
+            "5x",
+            "x5",
+            "1x2x3",
+            "-4",
+            "+4",
+            "4.5",
+            "99999999999",
+        ] {
             assert!(parse_size(bad).is_err(), "{bad}");
         }
-        assert_eq!(parse_sizes("256,512x128"), Ok(vec![[256, 256], [512, 128]]));
+        assert_eq!(
+            parse_sizes("256,512x128"),
+            Ok(Sizes(vec![[256, 256], [512, 128]]))
+        );
         assert!(parse_sizes("256,,512").is_err());
     }
 
     #[test]
     fn randomness_and_window() {
-        assert_eq!(parse_randomness("0.5"), Ok(vec![0.5]));
-        assert_eq!(parse_randomness("1,0.5, 0"), Ok(vec![1.0, 0.5, 0.0]));
+        assert_eq!(parse_randomness("0.5"), Ok(Randomness(vec![0.5])));
+        assert_eq!(
+            parse_randomness("1,0.5, 0"),
+            Ok(Randomness(vec![1.0, 0.5, 0.0]))
+        );
         for bad in ["", "nan", "inf", "-0.1", "2.5", "1,,2", "a"] {
             assert!(parse_randomness(bad).is_err(), "{bad}");
         }

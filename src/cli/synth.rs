@@ -6,14 +6,14 @@ use std::time::{Duration, Instant};
 
 use clap::Args;
 
-use texsyn::analysis::{Analysis, AnalysisOptions, MAX_K};
+use texsyn::analysis::{Analysis, AnalysisOptions, Exemplar, MAX_K};
 use texsyn::gpu::synth::{GpuSynthesis, GpuSynthesizer};
 use texsyn::gpu::GpuContext;
 use texsyn::passes::SynthParams;
 
 use super::{
-    channels_name, check_output_dir, check_output_size, fail, fmt_duration, parse_coherence, parse_randomness, parse_size, parse_window, CliResult,
-    TileArgs, Ui,
+    channels_name, check_output_dir, check_output_size, fail, fmt_duration, parse_coherence,
+    parse_randomness, parse_size, parse_window, CliResult, Randomness, TileArgs, Ui, WINDOW_HINT,
 };
 
 /// Synthesize a texture of any size from an exemplar image or analysis file
@@ -45,7 +45,7 @@ pub struct SynthArgs {
     /// (coarsest first, the last repeats). Default: 0.5 coarse, 0.25 next-to-finest,
     /// 0 finest
     #[arg(long, value_name = "R|R0,R1,...", value_parser = parse_randomness)]
-    pub randomness: Option<Vec<f32>>,
+    pub randomness: Option<Randomness>,
 
     /// Correction passes per level (0..=16; each is 4 subpasses)
     #[arg(long, value_name = "P", default_value_t = SynthParams::default().passes,
@@ -74,30 +74,55 @@ pub struct SynthArgs {
     pub coords_out: Option<PathBuf>,
 }
 
-/// Loads an analysis file or analyses an image; `--k` / `--tileable` must agree with an
-/// analysis file. Returns the analysis and whether it came from a file.
-pub fn load(ui: &Ui, path: &Path, k: Option<u32>, tileable: Option<bool>, threads: usize) -> CliResult<(Analysis, bool)> {
-    let from_file = texsyn::session::is_analysis_file(path)?;
-    let options = AnalysisOptions { k: k.unwrap_or(AnalysisOptions::default().k), tileable, threads, ..AnalysisOptions::default() };
-    let analysis = texsyn::session::load_source(path, &options, ui.analysis_progress())?;
-    if from_file {
-        if let Some(k) = k.filter(|&k| k != analysis.k) {
-            return Err(fail(format!(
-                "--k {k} does not match the analysis file {} (k = {}); drop --k or re-run `texsyn analyze --k {k}`",
-                path.display(),
-                analysis.k
-            )));
-        }
-        if let Some(t) = tileable.filter(|&t| t != analysis.tileable) {
-            let flag = if t { "--tileable" } else { "--no-tileable" };
-            return Err(fail(format!(
-                "{flag} does not match the analysis file {} (analysed as {}tileable); drop {flag} or re-run `texsyn analyze {flag}`",
-                path.display(),
-                if analysis.tileable { "" } else { "not " }
-            )));
-        }
+/// What EXEMPLAR held: a finished analysis, or an image still to analyse.
+pub enum Source {
+    Analysis(Analysis),
+    Image(Exemplar),
+}
+
+/// Reads EXEMPLAR (an analysis file or an image, told apart by content) without
+/// analysing it yet; `--k` / `--tileable` must agree with an analysis file.
+pub fn read_source(path: &Path, k: Option<u32>, tileable: Option<bool>) -> CliResult<Source> {
+    if !texsyn::session::is_analysis_file(path)? {
+        return Ok(Source::Image(texsyn::image_io::load_exemplar(path)?));
     }
-    Ok((analysis, from_file))
+    let analysis = Analysis::load(path)?;
+    if let Some(k) = k.filter(|&k| k != analysis.k) {
+        return Err(fail(format!(
+            "--k {k} does not match the analysis file {} (k = {}); drop --k or re-run `texsyn analyze --k {k}`",
+            path.display(),
+            analysis.k
+        )));
+    }
+    if let Some(t) = tileable.filter(|&t| t != analysis.tileable) {
+        let flag = if t { "--tileable" } else { "--no-tileable" };
+        return Err(fail(format!(
+            "{flag} does not match the analysis file {} (analysed as {}tileable); drop {flag} or re-run `texsyn analyze {flag}`",
+            path.display(),
+            if analysis.tileable { "" } else { "not " }
+        )));
+    }
+    Ok(Source::Analysis(analysis))
+}
+
+/// The library's size errors name its API (`SynthParams::origin`); name the option.
+pub fn cli_hint(e: texsyn::Error) -> texsyn::Error {
+    match e {
+        texsyn::Error::TooLarge {
+            what: "output",
+            width,
+            height,
+            limit,
+            ..
+        } => texsyn::Error::TooLarge {
+            what: "output",
+            width,
+            height,
+            limit,
+            hint: WINDOW_HINT,
+        },
+        other => other,
+    }
 }
 
 pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
@@ -109,15 +134,31 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
     }
     let [width, height] = args.size;
 
+    // Read the input first (cheap), then check the size against the device, and only
+    // then analyse (expensive).
+    let t = Instant::now();
+    let source = read_source(&args.exemplar, args.k, args.tile.get())?;
+    let read_time = t.elapsed();
+
     let t = Instant::now();
     let ctx = GpuContext::headless()?;
     let device_time = t.elapsed();
     ui.info(format!("adapter: {}", ctx.describe()));
-    check_output_size(&ctx, width, height)?;
+    check_output_size(&ctx, width, height).map_err(cli_hint)?;
 
-    let t = Instant::now();
-    let (analysis, from_file) = load(ui, &args.exemplar, args.k, args.tile.get(), 0)?;
-    let load_time = t.elapsed();
+    let (analysis, from_file, analysis_time) = match source {
+        Source::Analysis(a) => (a, true, None),
+        Source::Image(ex) => {
+            let t = Instant::now();
+            let options = AnalysisOptions {
+                k: args.k.unwrap_or(AnalysisOptions::default().k),
+                tileable: args.tile.get(),
+                ..AnalysisOptions::default()
+            };
+            let a = texsyn::analysis::analyze(&ex, &options, ui.analysis_progress())?;
+            (a, false, Some(t.elapsed()))
+        }
+    };
     ui.info(format!(
         "exemplar: {}x{} {}, {} levels, k = {}, {}tileable{}",
         analysis.width,
@@ -135,7 +176,7 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
         height,
         origin: args.window,
         seed: args.seed,
-        randomness: args.randomness.clone().unwrap_or_default(),
+        randomness: args.randomness.clone().map(|r| r.0).unwrap_or_default(),
         passes: args.passes,
         coherence: args.coherence,
     };
@@ -151,17 +192,28 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
         // Coordinates only come back through `synthesize_to_host`, which synthesizes and
         // reads back in one go: report the two together.
         let t = Instant::now();
-        let s = synthesizer.synthesize_to_host(&ctx, &params)?;
+        let s = synthesizer
+            .synthesize_to_host(&ctx, &params)
+            .map_err(cli_hint)?;
         ctx.take_uncaptured_errors()?;
         let synth_readback = t.elapsed();
         let t = Instant::now();
         let rgba8: Vec<u8> = s.colors.iter().flatten().copied().collect();
-        texsyn::image_io::save_image_atomic(&args.output, width, height, channels, &rgba8)?;
         texsyn::image_io::save_coords_exr_atomic(coords_path, width, height, &s.coords)?;
-        timings = Timings::Combined { synth_readback, write: t.elapsed() };
+        if let Err(e) =
+            texsyn::image_io::save_image_atomic(&args.output, width, height, channels, &rgba8)
+        {
+            // Leave no half result behind: the coordinates without their image.
+            let _ = std::fs::remove_file(coords_path);
+            return Err(e.into());
+        }
+        timings = Timings::Combined {
+            synth_readback,
+            write: t.elapsed(),
+        };
     } else {
         let t = Instant::now();
-        let gpu = synthesizer.synthesize(&ctx, &params)?;
+        let gpu = synthesizer.synthesize(&ctx, &params).map_err(cli_hint)?;
         ctx.take_uncaptured_errors()?;
         let synth = t.elapsed();
         let t = Instant::now();
@@ -169,24 +221,65 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
         let readback = t.elapsed();
         let t = Instant::now();
         texsyn::image_io::save_image_atomic(&args.output, width, height, channels, &rgba8)?;
-        timings = Timings::Separate { synth, readback, write: t.elapsed() };
+        timings = Timings::Separate {
+            synth,
+            readback,
+            write: t.elapsed(),
+        };
     }
 
     let px = width as f64 * height as f64;
-    ui.info(format!("output: {} ({width}x{height}, seed {}, window {},{})", args.output.display(), args.seed, args.window[0], args.window[1]));
+    ui.info(format!(
+        "output: {} ({width}x{height}, seed {}, window {},{})",
+        args.output.display(),
+        args.seed,
+        args.window[0],
+        args.window[1]
+    ));
     if let Some(c) = &args.coords_out {
         ui.info(format!("coordinates: {}", c.display()));
     }
-    ui.info(format!("time: device {}", fmt_duration(device_time)));
-    ui.info(format!("      {} {}", if from_file { "load analysis" } else { "load + analysis" }, fmt_duration(load_time)));
-    ui.info(format!("      GPU upload + pipelines {}", fmt_duration(upload_time)));
+    match analysis_time {
+        None => ui.info(format!(
+            "time: load analysis file {}",
+            fmt_duration(read_time)
+        )),
+        Some(a) => ui.info(format!(
+            "time: load image {}, analysis {}",
+            fmt_duration(read_time),
+            fmt_duration(a)
+        )),
+    }
+    ui.info(format!("      device {}", fmt_duration(device_time)));
+    ui.info(format!(
+        "      GPU upload + pipelines {}",
+        fmt_duration(upload_time)
+    ));
     match timings {
-        Timings::Separate { synth, readback, write } => {
-            ui.info(format!("      synthesis (GPU, synchronized) {} ({:.1} Mpixel/s)", fmt_duration(synth), px / synth.as_secs_f64() / 1e6));
-            ui.info(format!("      read-back {}, write {}", fmt_duration(readback), fmt_duration(write)));
+        Timings::Separate {
+            synth,
+            readback,
+            write,
+        } => {
+            ui.info(format!(
+                "      synthesis (GPU, synchronized) {} ({:.3} Mpixel/s)",
+                fmt_duration(synth),
+                px / synth.as_secs_f64() / 1e6
+            ));
+            ui.info(format!(
+                "      read-back {}, write {}",
+                fmt_duration(readback),
+                fmt_duration(write)
+            ));
         }
-        Timings::Combined { synth_readback, write } => {
-            ui.info(format!("      synthesis + read-back of colours and coordinates {}", fmt_duration(synth_readback)));
+        Timings::Combined {
+            synth_readback,
+            write,
+        } => {
+            ui.info(format!(
+                "      synthesis + read-back of colours and coordinates {}",
+                fmt_duration(synth_readback)
+            ));
             ui.info(format!("      write {}", fmt_duration(write)));
         }
     }
@@ -194,8 +287,15 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
 }
 
 enum Timings {
-    Separate { synth: Duration, readback: Duration, write: Duration },
-    Combined { synth_readback: Duration, write: Duration },
+    Separate {
+        synth: Duration,
+        readback: Duration,
+        write: Duration,
+    },
+    Combined {
+        synth_readback: Duration,
+        write: Duration,
+    },
 }
 
 /// Copies a synthesized texture back to the host as tightly packed RGBA8.
@@ -211,12 +311,25 @@ fn read_texture(ctx: &GpuContext, s: &GpuSynthesis) -> texsyn::Result<Vec<u8>> {
         });
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
         encoder.copy_texture_to_buffer(
-            wgpu::TexelCopyTextureInfo { texture: &s.texture, mip_level: 0, origin: wgpu::Origin3d::ZERO, aspect: wgpu::TextureAspect::All },
+            wgpu::TexelCopyTextureInfo {
+                texture: &s.texture,
+                mip_level: 0,
+                origin: wgpu::Origin3d::ZERO,
+                aspect: wgpu::TextureAspect::All,
+            },
             wgpu::TexelCopyBufferInfo {
                 buffer: &buffer,
-                layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(row as u32), rows_per_image: Some(h) },
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(row as u32),
+                    rows_per_image: Some(h),
+                },
             },
-            wgpu::Extent3d { width: w, height: h, depth_or_array_layers: 1 },
+            wgpu::Extent3d {
+                width: w,
+                height: h,
+                depth_or_array_layers: 1,
+            },
         );
         ctx.queue.submit([encoder.finish()]);
         buffer
@@ -226,8 +339,11 @@ fn read_texture(ctx: &GpuContext, s: &GpuSynthesis) -> texsyn::Result<Vec<u8>> {
         let _ = tx.send(r);
     });
     ctx.wait_idle()?;
-    let gpu_err = |e: &dyn std::fmt::Display| texsyn::Error::Gpu(format!("reading back the texture: {e}"));
-    rx.recv().map_err(|e| gpu_err(&e))?.map_err(|e| gpu_err(&e))?;
+    let gpu_err =
+        |e: &dyn std::fmt::Display| texsyn::Error::Gpu(format!("reading back the texture: {e}"));
+    rx.recv()
+        .map_err(|e| gpu_err(&e))?
+        .map_err(|e| gpu_err(&e))?;
     let mut out = Vec::with_capacity(w as usize * h as usize * 4);
     {
         let data = buffer.get_mapped_range(..).map_err(|e| gpu_err(&e))?;
@@ -247,8 +363,21 @@ fn check_save_extension(path: &Path) -> CliResult<()> {
     let Some(ext) = path.extension() else {
         return Ok(());
     };
-    let ok = F::from_extension(ext)
-        .is_some_and(|f| matches!(f, F::Png | F::Jpeg | F::Bmp | F::Tga | F::Tiff | F::WebP | F::Gif | F::Pnm | F::OpenExr | F::Hdr));
+    let ok = F::from_extension(ext).is_some_and(|f| {
+        matches!(
+            f,
+            F::Png
+                | F::Jpeg
+                | F::Bmp
+                | F::Tga
+                | F::Tiff
+                | F::WebP
+                | F::Gif
+                | F::Pnm
+                | F::OpenExr
+                | F::Hdr
+        )
+    });
     if ok {
         Ok(())
     } else {

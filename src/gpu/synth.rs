@@ -152,10 +152,8 @@ impl GpuSynthesizer {
                 immediate_size: 0,
             });
             let pipeline = |s: &ShaderSource| {
-                let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                    label: Some(s.file),
-                    source: wgpu::ShaderSource::Wgsl(s.source.into()),
-                });
+                let desc = wgpu::ShaderModuleDescriptor { label: Some(s.file), source: wgpu::ShaderSource::Wgsl(s.source.into()) };
+                let module = device.create_shader_module(desc);
                 device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                     label: Some(s.name),
                     layout: Some(&pipeline_layout),

@@ -18,6 +18,9 @@ pub struct PassParams {
     pub parent_size: [i32; 2],
     /// Correction subpass parity (absolute pixel position mod 2).
     pub parity: [i32; 2],
+    /// `h_l` reduced modulo the exemplar size per axis when tileable (`h_l` otherwise):
+    /// what the correction adds to coordinates, so [`wrap_near`] suffices to wrap them.
+    pub step: [i32; 2],
     /// `h_l`.
     pub spacing: i32,
     /// 1 if coordinates wrap around the exemplar, 0 if they are clamped to the margin.
@@ -44,7 +47,7 @@ pub struct PassParams {
     /// Output window inside this level's region (gather pass).
     pub window_offset: [i32; 2],
     pub window_size: [i32; 2],
-    pub _pad: [u32; 2],
+    pub _pad: [u32; 4],
 }
 
 /// Dynamic uniform offsets must be multiples of this (the WebGPU default limit).
@@ -77,6 +80,39 @@ pub fn wrap(c: i32, n: i32) -> i32 {
     ((c % n) + n) % n
 }
 
+/// `wrap` for `c` in `[-2n, 3n)`, without a division: integer division is by far the
+/// most expensive operation on CPU implementations of Vulkan (lavapipe scalarizes it),
+/// and the correction wraps ~30 coordinates per pixel. Its callers stay in range: a
+/// coordinate in `[0, n)`, an offset of at most `n/2`, and a step below `n`.
+#[inline]
+pub fn wrap_near(c: i32, n: i32) -> i32 {
+    let mut v = c;
+    if v < 0 {
+        v += n;
+    }
+    if v < 0 {
+        v += n;
+    }
+    if v >= n {
+        v -= n;
+    }
+    if v >= n {
+        v -= n;
+    }
+    v
+}
+
+/// A candidate or read position in the correction: wrapped with [`wrap_near`]
+/// (tileable) or clamped to the valid region (non-tileable; only called on valid ones).
+#[inline]
+pub fn fit_near(c: [i32; 2], p: &PassParams) -> [i32; 2] {
+    if p.tileable != 0 {
+        [wrap_near(c[0], p.ex_size[0]), wrap_near(c[1], p.ex_size[1])]
+    } else {
+        fit_coord(c, p)
+    }
+}
+
 /// A coordinate after upsampling or jittering: wrapped (tileable) or clamped into the
 /// valid region (non-tileable).
 #[inline]
@@ -91,11 +127,12 @@ pub fn fit_coord(c: [i32; 2], p: &PassParams) -> [i32; 2] {
     }
 }
 
-/// An exemplar read position: wrapped (tileable) or clamped to the image (non-tileable).
+/// An exemplar read position in the correction: wrapped (tileable, with
+/// [`wrap_near`]) or clamped to the image (non-tileable).
 #[inline]
 pub fn read_coord(c: [i32; 2], p: &PassParams) -> [i32; 2] {
     if p.tileable != 0 {
-        [wrap(c[0], p.ex_size[0]), wrap(c[1], p.ex_size[1])]
+        [wrap_near(c[0], p.ex_size[0]), wrap_near(c[1], p.ex_size[1])]
     } else {
         [c[0].clamp(0, p.ex_size[0] - 1), c[1].clamp(0, p.ex_size[1] - 1)]
     }

@@ -15,7 +15,7 @@
 //! keep it. Non-coherent candidates (i > 1) pay `dist * (1 + coherence/16)`. Candidates
 //! outside the valid region (non-tileable exemplars) are skipped.
 
-use super::common::{fit_coord, is_valid, read_coord, region_index, PassParams};
+use super::common::{fit_near, is_valid, read_coord, region_index, PassParams};
 use crate::analysis::{DIAGONALS, DIM, QE_MAX};
 
 /// The per-level tables a correction pass reads.
@@ -34,13 +34,13 @@ fn ex_index(c: [i32; 2], p: &PassParams) -> usize {
 /// `3 * P * N_S(p)` shifted, for the pixel at region position `q`.
 pub fn synthesized_neighbourhood(p: &PassParams, t: &LevelTables, coords: &[[i32; 2]], q: [i32; 2]) -> [i32; DIM] {
     let base = p.coord_base as usize;
-    let h = p.spacing;
+    let h = p.step;
     let mut acc = [0i32; DIM];
     for (j, d) in DIAGONALS.iter().enumerate() {
         let mut sum = [0i32; DIM];
         for dp in [*d, [d[0], 0], [0, d[1]]] {
             let s = coords[base + region_index([q[0] + dp[0], q[1] + dp[1]], p)];
-            let u = read_coord([s[0] + h * (d[0] - dp[0]), s[1] + h * (d[1] - dp[1])], p);
+            let u = read_coord([s[0] + h[0] * (d[0] - dp[0]), s[1] + h[1] * (d[1] - dp[1])], p);
             let e = t.et[ex_index(u, p)];
             for c in 0..DIM {
                 sum[c] += e[c] as i32;
@@ -68,7 +68,7 @@ pub fn distance(ns: &[i32; DIM], qe: &[i16; DIM]) -> u32 {
 /// New coordinate of the pixel at region position `q`.
 pub fn correct_pixel(p: &PassParams, t: &LevelTables, coords: &[[i32; 2]], q: [i32; 2]) -> [i32; 2] {
     let base = p.coord_base as usize;
-    let h = p.spacing;
+    let h = p.step;
     let ns = synthesized_neighbourhood(p, t, coords, q);
     let current = coords[base + region_index(q, p)];
     let mut best = current;
@@ -82,11 +82,11 @@ pub fn correct_pixel(p: &PassParams, t: &LevelTables, coords: &[[i32; 2]], q: [i
             let s = coords[base + region_index([q[0] + dx, q[1] + dy], p)];
             for i in 0..p.k as usize {
                 let o = if i == 0 { [0, 0] } else { let o = t.offsets[ex_index(s, p) * km1 + i - 1]; [o[0] as i32, o[1] as i32] };
-                let raw = [s[0] + o[0] - h * dx, s[1] + o[1] - h * dy];
+                let raw = [s[0] + o[0] - h[0] * dx, s[1] + o[1] - h[1] * dy];
                 if !is_valid(raw, p) {
                     continue;
                 }
-                let c = fit_coord(raw, p);
+                let c = fit_near(raw, p);
                 let mut d = distance(&ns, &t.qe[ex_index(c, p)]);
                 if i > 0 {
                     d = d.saturating_add((d >> 4).saturating_mul(p.coherence));

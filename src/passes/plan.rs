@@ -43,14 +43,15 @@ impl Default for SynthParams {
     }
 }
 
-/// Default per-level randomness: strong at the coarse levels (new arrangement of
-/// features), none at the finest (keep exemplar detail intact).
-pub fn default_randomness(level: u32, levels: u32) -> f32 {
-    let from_finest = levels.saturating_sub(level);
-    match from_finest {
+/// Default per-level randomness: a whole pixel at the coarse levels, so features are
+/// rearranged rather than the exemplar's layout reproduced, fading to none at the
+/// finest level so exemplar detail stays intact.
+pub fn default_randomness(level: u32, finest: u32) -> f32 {
+    match finest.saturating_sub(level) {
         0 => 0.0,
         1 => 0.25,
-        _ => 0.5,
+        2 => 0.5,
+        _ => 1.0,
     }
 }
 
@@ -183,6 +184,11 @@ impl SynthPlan {
             parent_size: if level > 0 { [parent.size[0] as i32, parent.size[1] as i32] } else { [0, 0] },
             parity: [0, 0],
             spacing: lp.spacing as i32,
+            step: if analysis.tileable {
+                [(lp.spacing % analysis.width) as i32, (lp.spacing % analysis.height) as i32]
+            } else {
+                [lp.spacing as i32; 2]
+            },
             tileable: analysis.tileable as i32,
             margin: ld.margin as i32,
             level: lp.level,
@@ -198,7 +204,7 @@ impl SynthPlan {
             parent_coord_base: parent.coord_base,
             window_offset: [self.window_offset[0] as i32, self.window_offset[1] as i32],
             window_size: [self.params.width as i32, self.params.height as i32],
-            _pad: [0, 0],
+            _pad: [0; 4],
         }
     }
 }

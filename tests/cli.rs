@@ -1,0 +1,741 @@
+//! The `texsyn` binary end to end: synth / analyze / eval on the bundled exemplar, and
+//! every kind of bad input exiting non-zero with a message and no output file. Needs a
+//! GPU adapter (lavapipe in CI). Sizes are small so the file runs in seconds.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::sync::atomic::{AtomicU32, Ordering};
+
+const BIN: &str = env!("CARGO_BIN_EXE_texsyn");
+const GRAVEL: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/gravel.png");
+
+/// A fresh directory under the system temp dir, removed on drop.
+struct TempDir(PathBuf);
+
+impl TempDir {
+    fn new(name: &str) -> Self {
+        static COUNTER: AtomicU32 = AtomicU32::new(0);
+        let dir = std::env::temp_dir().join(format!(
+            "texsyn-cli-test-{}-{}-{name}",
+            std::process::id(),
+            COUNTER.fetch_add(1, Ordering::Relaxed)
+        ));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        TempDir(dir)
+    }
+
+    fn path(&self, name: &str) -> PathBuf {
+        self.0.join(name)
+    }
+
+    /// Names of the files in the directory, sorted.
+    fn files(&self) -> Vec<String> {
+        let mut v: Vec<String> = std::fs::read_dir(&self.0)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        v.sort();
+        v
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// Runs `texsyn args...` in `dir`.
+fn texsyn(dir: &TempDir, args: &[&str]) -> Output {
+    Command::new(BIN)
+        .args(args)
+        .current_dir(&dir.0)
+        .output()
+        .expect("cannot run the texsyn binary")
+}
+
+fn text(bytes: &[u8]) -> String {
+    String::from_utf8_lossy(bytes).into_owned()
+}
+
+/// Runs and asserts success; returns stdout.
+fn ok(dir: &TempDir, args: &[&str]) -> String {
+    let out = texsyn(dir, args);
+    assert!(
+        out.status.success(),
+        "texsyn {args:?} failed ({:?}):\n{}",
+        out.status,
+        text(&out.stderr)
+    );
+    text(&out.stdout)
+}
+
+/// Runs, asserts failure with exit code `code` and a stderr line `error: ...` containing
+/// `needle` (case-insensitive), and that the directory holds exactly `files_before`
+/// afterwards (no output, no temporary file).
+fn fails(dir: &TempDir, args: &[&str], code: i32, needle: &str) {
+    let before = dir.files();
+    let out = texsyn(dir, args);
+    let stderr = text(&out.stderr);
+    assert_eq!(
+        out.status.code(),
+        Some(code),
+        "texsyn {args:?}: stderr:\n{stderr}"
+    );
+    let error_line = stderr
+        .lines()
+        .find(|l| l.starts_with("error: ") && l.to_lowercase().contains(&needle.to_lowercase()));
+    assert!(
+        error_line.is_some(),
+        "texsyn {args:?}: no `error: ...{needle}...` line in stderr:\n{stderr}"
+    );
+    assert!(
+        !stderr.contains("panicked"),
+        "texsyn {args:?} panicked:\n{stderr}"
+    );
+    assert_eq!(dir.files(), before, "texsyn {args:?} left files behind");
+}
+
+fn png_size(path: &Path) -> (u32, u32) {
+    let img = image::open(path)
+        .unwrap_or_else(|e| panic!("{} is not a readable image: {e}", path.display()));
+    (img.width(), img.height())
+}
+
+#[test]
+fn synth_analyze_and_eval() {
+    let dir = TempDir::new("main");
+    let read = |name: &str| std::fs::read(dir.path(name)).unwrap();
+
+    // Happy path from the image.
+    ok(
+        &dir,
+        &[
+            "synth", GRAVEL, "-o", "out.png", "--size", "64", "--seed", "3",
+        ],
+    );
+    assert_eq!(png_size(&dir.path("out.png")), (64, 64));
+    assert!(read("out.png").starts_with(b"\x89PNG"));
+
+    // analyze, with its summary.
+    let out = texsyn(&dir, &["analyze", GRAVEL, "-o", "gravel.tsa"]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let stderr = text(&out.stderr);
+    for needle in [
+        "analysing level 8/8",
+        "128x128",
+        "tileable: no (detected)",
+        "levels: 8",
+        "residual variance",
+    ] {
+        assert!(
+            stderr.contains(needle),
+            "analyze summary lacks {needle:?}:\n{stderr}"
+        );
+    }
+    assert!(read("gravel.tsa").starts_with(b"TEXSYNA\0"));
+
+    // From the analysis file: the same bytes as from the image.
+    ok(
+        &dir,
+        &[
+            "synth",
+            "gravel.tsa",
+            "-o",
+            "from_file.png",
+            "--size",
+            "64",
+            "--seed",
+            "3",
+        ],
+    );
+    assert_eq!(
+        read("from_file.png"),
+        read("out.png"),
+        "analysis file and image give different outputs"
+    );
+
+    // Same seed twice: identical; another seed: different.
+    ok(
+        &dir,
+        &[
+            "synth",
+            "gravel.tsa",
+            "-o",
+            "again.png",
+            "--size",
+            "64",
+            "--seed",
+            "3",
+        ],
+    );
+    assert_eq!(read("again.png"), read("out.png"));
+    ok(
+        &dir,
+        &[
+            "synth",
+            "gravel.tsa",
+            "-o",
+            "seed4.png",
+            "--size",
+            "64",
+            "--seed",
+            "4",
+        ],
+    );
+    assert_ne!(
+        read("seed4.png"),
+        read("out.png"),
+        "seeds 3 and 4 gave the same texture"
+    );
+
+    // Non-square, other options, a negative window, --quiet.
+    let out = texsyn(
+        &dir,
+        &[
+            "--quiet",
+            "synth",
+            "gravel.tsa",
+            "-o",
+            "opts.png",
+            "--size",
+            "40x24",
+            "--randomness",
+            "1,0.5,0.25",
+            "--passes",
+            "1",
+            "--coherence",
+            "0.5",
+            "--window",
+            "-100,37",
+            "--k",
+            "2",
+            "--no-tileable",
+        ],
+    );
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    assert_eq!(png_size(&dir.path("opts.png")), (40, 24));
+    let stderr = text(&out.stderr);
+    assert!(
+        !stderr.contains("adapter:") && !stderr.contains("time:"),
+        "--quiet still printed:\n{stderr}"
+    );
+
+    // Windows of one infinite texture agree: the right half of a 64-wide window equals a
+    // 32-wide window at x = 32.
+    ok(
+        &dir,
+        &[
+            "synth",
+            "gravel.tsa",
+            "-o",
+            "right.png",
+            "--size",
+            "32x64",
+            "--seed",
+            "3",
+            "--window",
+            "32,0",
+        ],
+    );
+    let full = image::open(dir.path("out.png")).unwrap().to_luma8();
+    let right = image::open(dir.path("right.png")).unwrap().to_luma8();
+    for y in 0..64 {
+        for x in 0..32 {
+            assert_eq!(
+                full.get_pixel(x + 32, y),
+                right.get_pixel(x, y),
+                "window mismatch at ({x}, {y})"
+            );
+        }
+    }
+
+    // --coords-out: an EXR the library reads back, and the same image.
+    ok(
+        &dir,
+        &[
+            "synth",
+            "gravel.tsa",
+            "-o",
+            "with_coords.png",
+            "--size",
+            "64",
+            "--seed",
+            "3",
+            "--coords-out",
+            "coords.exr",
+        ],
+    );
+    assert_eq!(read("with_coords.png"), read("out.png"));
+    let (w, h, coords) = texsyn::image_io::load_coords_exr(&dir.path("coords.exr")).unwrap();
+    assert_eq!((w, h, coords.len()), (64, 64, 64 * 64));
+    assert!(
+        coords
+            .iter()
+            .all(|c| (0..128).contains(&c[0]) && (0..128).contains(&c[1])),
+        "coordinates outside the exemplar"
+    );
+
+    // eval: JSON with the expected keys; verbatim figures only with --coords.
+    let json = ok(&dir, &["eval", GRAVEL, "out.png", "--coords", "coords.exr"]);
+    let v = json::parse(json.trim())
+        .unwrap_or_else(|e| panic!("eval printed invalid JSON ({e}):\n{json}"));
+    for (section, keys) in [
+        ("texture_energy", &["full", "half", "quarter"][..]),
+        ("histogram_emd", &["mean"][..]),
+        (
+            "verbatim",
+            &[
+                "coherent_fraction",
+                "largest_region_fraction",
+                "largest_region_pixels",
+                "regions",
+            ][..],
+        ),
+    ] {
+        for key in keys {
+            let n = v
+                .get(section)
+                .and_then(|s| s.get(key))
+                .and_then(json::Value::number);
+            assert!(
+                n.is_some_and(|n| n.is_finite() && n >= 0.0),
+                "eval: {section}.{key} missing or not a number in {json}"
+            );
+        }
+    }
+    match v.get("histogram_emd").and_then(|h| h.get("per_channel")) {
+        Some(json::Value::Array(a)) => assert!(
+            !a.is_empty() && a.iter().all(|x| x.number().is_some()),
+            "{json}"
+        ),
+        other => panic!("histogram_emd.per_channel is {other:?} in {json}"),
+    }
+    let json = ok(&dir, &["eval", GRAVEL, "seed4.png"]);
+    let v = json::parse(json.trim())
+        .unwrap_or_else(|e| panic!("eval printed invalid JSON ({e}):\n{json}"));
+    assert_eq!(v.get("verbatim"), Some(&json::Value::Null), "{json}");
+    assert!(v
+        .get("texture_energy")
+        .and_then(|s| s.get("full"))
+        .and_then(json::Value::number)
+        .is_some());
+
+    // eval needs the image, not the analysis file.
+    fails(
+        &dir,
+        &["eval", "gravel.tsa", "out.png"],
+        1,
+        "eval needs the exemplar image",
+    );
+    // A coordinate map of another size.
+    ok(
+        &dir,
+        &[
+            "synth",
+            "gravel.tsa",
+            "-o",
+            "small.png",
+            "--size",
+            "32",
+            "--coords-out",
+            "small.exr",
+        ],
+    );
+    fails(
+        &dir,
+        &["eval", GRAVEL, "out.png", "--coords", "small.exr"],
+        1,
+        "is 32x32",
+    );
+
+    // Bad analysis files: flipped byte (checksum), wrong version, options that disagree.
+    let mut bytes = read("gravel.tsa");
+    let mid = bytes.len() / 2;
+    bytes[mid] ^= 0x5a;
+    std::fs::write(dir.path("corrupt.tsa"), &bytes).unwrap();
+    fails(
+        &dir,
+        &["synth", "corrupt.tsa", "-o", "bad.png", "--size", "16"],
+        1,
+        "corrupt",
+    );
+    let mut bytes = read("gravel.tsa");
+    bytes[8..12].copy_from_slice(&99u32.to_le_bytes());
+    std::fs::write(dir.path("version.tsa"), &bytes).unwrap();
+    fails(
+        &dir,
+        &["synth", "version.tsa", "-o", "bad.png", "--size", "16"],
+        1,
+        "version 99",
+    );
+    fails(
+        &dir,
+        &[
+            "synth",
+            "gravel.tsa",
+            "-o",
+            "bad.png",
+            "--size",
+            "16",
+            "--k",
+            "3",
+        ],
+        1,
+        "does not match the analysis file",
+    );
+    fails(
+        &dir,
+        &[
+            "synth",
+            "gravel.tsa",
+            "-o",
+            "bad.png",
+            "--size",
+            "16",
+            "--tileable",
+        ],
+        1,
+        "does not match the analysis file",
+    );
+
+    // A failed run leaves an existing output untouched.
+    let before = read("out.png");
+    fails(
+        &dir,
+        &["synth", "corrupt.tsa", "-o", "out.png", "--size", "16"],
+        1,
+        "corrupt",
+    );
+    assert_eq!(read("out.png"), before);
+}
+
+#[test]
+fn bad_inputs_fail_cleanly() {
+    let dir = TempDir::new("bad");
+    std::fs::write(dir.path("notes.txt"), "not an image\n").unwrap();
+    std::fs::write(dir.path("empty.png"), b"").unwrap();
+    image::GrayImage::new(1, 1)
+        .save(dir.path("one.png"))
+        .unwrap();
+    image::GrayImage::new(8, 8)
+        .save(dir.path("eight.png"))
+        .unwrap();
+
+    let synth = |exemplar: &str, extra: &[&str], code: i32, needle: &str| {
+        let mut args = vec!["synth", exemplar, "-o", "out.png"];
+        if !extra.iter().any(|a| *a == "--size") {
+            args.extend(["--size", "32"]);
+        }
+        args.extend(extra);
+        fails(&dir, &args, code, needle);
+    };
+    synth("missing.png", &[], 1, "missing.png");
+    synth("notes.txt", &[], 1, "not a readable image");
+    synth("empty.png", &[], 1, "empty");
+    synth("one.png", &[], 1, "1x1");
+    synth("eight.png", &[], 1, "8x8");
+
+    // Usage errors (clap: exit code 2).
+    synth(GRAVEL, &["--size", "0"], 2, "at least 1");
+    synth(GRAVEL, &["--size", "0x5"], 2, "at least 1");
+    synth(GRAVEL, &["--size", "big"], 2, "expected N or NxM");
+    synth(GRAVEL, &["--size", "4x4x4"], 2, "expected N or NxM");
+    synth(GRAVEL, &["--randomness", "2.5"], 2, "between 0 and 2");
+    synth(GRAVEL, &["--randomness", "nan"], 2, "between 0 and 2");
+    synth(GRAVEL, &["--seed", "4294967296"], 2, "--seed");
+    synth(GRAVEL, &["--seed", "x"], 2, "--seed");
+    synth(GRAVEL, &["--passes", "17"], 2, "--passes");
+    synth(
+        GRAVEL,
+        &["--tileable", "--no-tileable"],
+        2,
+        "cannot be used with",
+    );
+    fails(
+        &dir,
+        &["synth", GRAVEL, "--size", "16"],
+        2,
+        "required arguments",
+    );
+    fails(&dir, &["frobnicate"], 2, "frobnicate");
+
+    // Output problems are found before any work.
+    fails(
+        &dir,
+        &["synth", GRAVEL, "-o", "no/such/dir/out.png", "--size", "16"],
+        1,
+        "does not exist",
+    );
+    fails(
+        &dir,
+        &["synth", GRAVEL, "-o", "out.xyz", "--size", "16"],
+        1,
+        "unsupported image extension",
+    );
+    fails(
+        &dir,
+        &["analyze", GRAVEL, "-o", "no/such/dir/g.tsa"],
+        1,
+        "does not exist",
+    );
+
+    // Larger than the device allows.
+    synth(
+        GRAVEL,
+        &["--size", "100000x100000"],
+        1,
+        "larger than this device allows",
+    );
+    synth(
+        GRAVEL,
+        &["--size", "100000x16"],
+        1,
+        "larger than this device allows",
+    );
+
+    // analyze and eval with bad inputs.
+    fails(&dir, &["analyze", "eight.png", "-o", "g.tsa"], 1, "8x8");
+    fails(
+        &dir,
+        &["analyze", "missing.png", "-o", "g.tsa"],
+        1,
+        "missing.png",
+    );
+    fails(
+        &dir,
+        &["eval", GRAVEL, "notes.txt"],
+        1,
+        "not a readable image",
+    );
+    fails(&dir, &["eval", "one.png", GRAVEL], 1, "1x1");
+    fails(
+        &dir,
+        &["bench", "empty.png", "--sizes", "16", "--runs", "1"],
+        1,
+        "empty",
+    );
+    fails(&dir, &["bench", GRAVEL, "--sizes", "0"], 2, "at least 1");
+}
+
+#[test]
+fn help_for_every_subcommand() {
+    let dir = TempDir::new("help");
+    let top = ok(&dir, &["--help"]);
+    for sub in ["analyze", "synth", "eval", "bench"] {
+        assert!(top.contains(sub), "--help does not list {sub}:\n{top}");
+        let help = ok(&dir, &[sub, "--help"]);
+        assert!(help.contains("Usage: texsyn"), "{sub} --help:\n{help}");
+        assert!(
+            help.contains("--quiet"),
+            "{sub} --help lacks the global --quiet:\n{help}"
+        );
+    }
+    let synth = ok(&dir, &["synth", "--help"]);
+    for opt in [
+        "--size",
+        "--seed",
+        "--randomness",
+        "--passes",
+        "--k",
+        "--coherence",
+        "--tileable",
+        "--no-tileable",
+        "--window",
+        "--coords-out",
+    ] {
+        assert!(synth.contains(opt), "synth --help lacks {opt}");
+    }
+    let bench = ok(&dir, &["bench", "--help"]);
+    for opt in ["--sizes", "--runs", "--warmup"] {
+        assert!(bench.contains(opt), "bench --help lacks {opt}");
+    }
+}
+
+#[test]
+fn bench_prints_a_table() {
+    let dir = TempDir::new("bench");
+    let out = texsyn(&dir, &["analyze", GRAVEL, "-o", "g.tsa", "--quiet"]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let stdout = ok(
+        &dir,
+        &[
+            "bench",
+            "g.tsa",
+            "--sizes",
+            "16,24x8,100000",
+            "--runs",
+            "2",
+            "--warmup",
+            "1",
+        ],
+    );
+    let lines: Vec<&str> = stdout.lines().collect();
+    assert!(lines[0].starts_with("adapter: "), "{stdout}");
+    let row = |size: &str| {
+        lines
+            .iter()
+            .find(|l| l.split_whitespace().next() == Some(size))
+            .unwrap_or_else(|| panic!("no row for {size}:\n{stdout}"))
+            .to_string()
+    };
+    for size in ["16x16", "24x8"] {
+        let r = row(size);
+        assert!(!r.contains("error"), "{r}");
+        assert_eq!(r.split_whitespace().count(), 1 + 2 * 3 + 1 + 2, "row {r:?}");
+    }
+    assert!(
+        row("100000x100000")
+            .contains("error: output is 100000x100000, larger than this device allows"),
+        "{stdout}"
+    );
+}
+
+/// Just enough JSON to check `eval`'s output.
+mod json {
+    #[derive(Debug, PartialEq)]
+    pub enum Value {
+        Null,
+        Bool(bool),
+        Number(f64),
+        String(String),
+        Array(Vec<Value>),
+        Object(Vec<(String, Value)>),
+    }
+
+    impl Value {
+        pub fn get(&self, key: &str) -> Option<&Value> {
+            match self {
+                Value::Object(m) => m.iter().find(|(k, _)| k == key).map(|(_, v)| v),
+                _ => None,
+            }
+        }
+        pub fn number(&self) -> Option<f64> {
+            match self {
+                Value::Number(n) => Some(*n),
+                _ => None,
+            }
+        }
+    }
+
+    pub fn parse(s: &str) -> Result<Value, String> {
+        let b = s.as_bytes();
+        let mut i = 0;
+        let v = value(b, &mut i)?;
+        ws(b, &mut i);
+        if i != b.len() {
+            return Err(format!("trailing characters at {i}"));
+        }
+        Ok(v)
+    }
+
+    fn ws(b: &[u8], i: &mut usize) {
+        while *i < b.len() && b[*i].is_ascii_whitespace() {
+            *i += 1;
+        }
+    }
+
+    fn expect(b: &[u8], i: &mut usize, lit: &str) -> Result<(), String> {
+        if b[*i..].starts_with(lit.as_bytes()) {
+            *i += lit.len();
+            Ok(())
+        } else {
+            Err(format!("expected {lit:?} at {i}"))
+        }
+    }
+
+    fn value(b: &[u8], i: &mut usize) -> Result<Value, String> {
+        ws(b, i);
+        match b.get(*i) {
+            None => Err("unexpected end".into()),
+            Some(b'n') => expect(b, i, "null").map(|_| Value::Null),
+            Some(b't') => expect(b, i, "true").map(|_| Value::Bool(true)),
+            Some(b'f') => expect(b, i, "false").map(|_| Value::Bool(false)),
+            Some(b'"') => string(b, i).map(Value::String),
+            Some(b'[') => {
+                *i += 1;
+                let mut items = Vec::new();
+                ws(b, i);
+                if b.get(*i) == Some(&b']') {
+                    *i += 1;
+                    return Ok(Value::Array(items));
+                }
+                loop {
+                    items.push(value(b, i)?);
+                    ws(b, i);
+                    match b.get(*i) {
+                        Some(b',') => *i += 1,
+                        Some(b']') => {
+                            *i += 1;
+                            return Ok(Value::Array(items));
+                        }
+                        _ => return Err(format!("expected , or ] at {i}")),
+                    }
+                }
+            }
+            Some(b'{') => {
+                *i += 1;
+                let mut members = Vec::new();
+                ws(b, i);
+                if b.get(*i) == Some(&b'}') {
+                    *i += 1;
+                    return Ok(Value::Object(members));
+                }
+                loop {
+                    ws(b, i);
+                    let k = string(b, i)?;
+                    ws(b, i);
+                    expect(b, i, ":")?;
+                    members.push((k, value(b, i)?));
+                    ws(b, i);
+                    match b.get(*i) {
+                        Some(b',') => *i += 1,
+                        Some(b'}') => {
+                            *i += 1;
+                            return Ok(Value::Object(members));
+                        }
+                        _ => return Err(format!("expected , or }} at {i}")),
+                    }
+                }
+            }
+            Some(_) => {
+                let start = *i;
+                while *i < b.len()
+                    && matches!(b[*i], b'-' | b'+' | b'.' | b'e' | b'E' | b'0'..=b'9')
+                {
+                    *i += 1;
+                }
+                let t = std::str::from_utf8(&b[start..*i]).unwrap();
+                t.parse::<f64>()
+                    .map(Value::Number)
+                    .map_err(|_| format!("bad number {t:?} at {start}"))
+            }
+        }
+    }
+
+    fn string(b: &[u8], i: &mut usize) -> Result<String, String> {
+        expect(b, i, "\"")?;
+        let mut out = String::new();
+        while let Some(&c) = b.get(*i) {
+            *i += 1;
+            match c {
+                b'"' => return Ok(out),
+                b'\\' => {
+                    let e = *b.get(*i).ok_or("unterminated escape")?;
+                    *i += 1;
+                    out.push(match e {
+                        b'n' => '\n',
+                        b't' => '\t',
+                        b'"' => '"',
+                        b'\\' => '\\',
+                        b'/' => '/',
+                        _ => return Err(format!("unsupported escape at {i}")),
+                    });
+                }
+                c => out.push(c as char),
+            }
+        }
+        Err("unterminated string".into())
+    }
+}
