@@ -425,7 +425,7 @@ fn bad_inputs_fail_cleanly() {
 
     let synth = |exemplar: &str, extra: &[&str], code: i32, needle: &str| {
         let mut args = vec!["synth", exemplar, "-o", "out.png"];
-        if !extra.iter().any(|a| *a == "--size") {
+        if !extra.contains(&"--size") {
             args.extend(["--size", "32"]);
         }
         args.extend(extra);

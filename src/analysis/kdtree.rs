@@ -8,7 +8,9 @@
 //!
 //! Queries are exact (depth-first, nearer child first, pruned with the incremental
 //! lower bound of Arya & Mount) or approximate (best-bin-first with a budget of
-//! examined points). Results are deterministic: the same points and query always give
+//! examined points). [`KdTree::search`] exposes the best-bin-first traversal with a
+//! caller-controlled bound, for searches that refine tree-space distances (lower
+//! bounds) with a costlier exact distance. Results are deterministic: the same points and query always give
 //! the same answer, ties in distance are broken by the smaller original index, and
 //! nothing depends on threads or addresses.
 //!

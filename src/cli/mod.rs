@@ -364,7 +364,9 @@ pub fn check_output_size(
         return Err(too_large(format!("at most {max_dim} pixels a side")));
     }
     let bytes = width as u64 * height as u64 * 8;
-    let max = (limits.max_storage_buffer_binding_size as u64).min(limits.max_buffer_size);
+    let max = limits
+        .max_storage_buffer_binding_size
+        .min(limits.max_buffer_size);
     if bytes > max {
         return Err(too_large(format!(
             "its coordinate pyramid needs more than {} MiB in one buffer, the device allows {} MiB",
