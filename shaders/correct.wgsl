@@ -20,6 +20,28 @@ fn cand_distance(ns_lo: vec4<i32>, ns_hi: vec4<i32>, c: vec2<i32>) -> u32 {
     return sq.x + sq.y + sq.z + sq.w;
 }
 
+// Adds P_j * (sum of the three predictions of the appearance at q + d) to the
+// accumulator. P is stored per diagonal block j as 8 columns of two vec4 (rows 0-3,
+// rows 4-7), so the product is 16 vector multiply-adds.
+fn project_diagonal(q: vec2<i32>, d: vec2<i32>, h: vec2<i32>, j: u32, acc_lo: ptr<function, vec4<i32>>, acc_hi: ptr<function, vec4<i32>>) {
+    var lo: vec4<i32>;
+    var hi: vec4<i32>;
+    et_at(read_coord(coords[region_index(q + d)]), &lo, &hi);
+    var sum_lo = lo;
+    var sum_hi = hi;
+    et_at(read_coord(coords[region_index(q + vec2<i32>(d.x, 0))] + vec2<i32>(0, h.y * d.y)), &lo, &hi);
+    sum_lo += lo;
+    sum_hi += hi;
+    et_at(read_coord(coords[region_index(q + vec2<i32>(0, d.y))] + vec2<i32>(h.x * d.x, 0)), &lo, &hi);
+    sum_lo += lo;
+    sum_hi += hi;
+    let b = 16u * j;
+    *acc_lo += proj[b + 0u] * sum_lo.x + proj[b + 2u] * sum_lo.y + proj[b + 4u] * sum_lo.z + proj[b + 6u] * sum_lo.w
+        + proj[b + 8u] * sum_hi.x + proj[b + 10u] * sum_hi.y + proj[b + 12u] * sum_hi.z + proj[b + 14u] * sum_hi.w;
+    *acc_hi += proj[b + 1u] * sum_lo.x + proj[b + 3u] * sum_lo.y + proj[b + 5u] * sum_lo.z + proj[b + 7u] * sum_lo.w
+        + proj[b + 9u] * sum_hi.x + proj[b + 11u] * sum_hi.y + proj[b + 13u] * sum_hi.z + proj[b + 15u] * sum_hi.w;
+}
+
 @compute @workgroup_size(8, 8, 1)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let start = (params.parity - params.origin) & vec2<i32>(1);
@@ -29,30 +51,17 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let h = params.step;
 
-    // Synthesized neighbourhood: per diagonal, the sum of three predictions, projected.
-    var acc = array<i32, 8>(0, 0, 0, 0, 0, 0, 0, 0);
-    let diag = array<vec2<i32>, 4>(vec2<i32>(1, 1), vec2<i32>(1, -1), vec2<i32>(-1, 1), vec2<i32>(-1, -1));
-    for (var j = 0u; j < 4u; j++) {
-        let d = diag[j];
-        var sum_lo = vec4<i32>(0);
-        var sum_hi = vec4<i32>(0);
-        let preds = array<vec2<i32>, 3>(d, vec2<i32>(d.x, 0), vec2<i32>(0, d.y));
-        for (var t = 0u; t < 3u; t++) {
-            let dp = preds[t];
-            let s = coords[region_index(q + dp)];
-            var lo: vec4<i32>;
-            var hi: vec4<i32>;
-            et_at(read_coord(s + h * (d - dp)), &lo, &hi);
-            sum_lo += lo;
-            sum_hi += hi;
-        }
-        let pb = params.proj_base + 2u * j;
-        for (var r = 0u; r < 8u; r++) {
-            acc[r] += dot(proj[pb + 8u * r], sum_lo) + dot(proj[pb + 8u * r + 1u], sum_hi);
-        }
-    }
-    let ns_lo = vec4<i32>(acc[0], acc[1], acc[2], acc[3]) >> vec4<u32>(params.shift);
-    let ns_hi = vec4<i32>(acc[4], acc[5], acc[6], acc[7]) >> vec4<u32>(params.shift);
+    // Synthesized neighbourhood: per diagonal, the sum of three predictions, projected
+    // by that diagonal's 8x8 block of P. Written out without local arrays: CPU drivers
+    // turn dynamically indexed local arrays into per-lane memory traffic.
+    var acc_lo = vec4<i32>(0);
+    var acc_hi = vec4<i32>(0);
+    project_diagonal(q, vec2<i32>(1, 1), h, 0u, &acc_lo, &acc_hi);
+    project_diagonal(q, vec2<i32>(1, -1), h, 1u, &acc_lo, &acc_hi);
+    project_diagonal(q, vec2<i32>(-1, 1), h, 2u, &acc_lo, &acc_hi);
+    project_diagonal(q, vec2<i32>(-1, -1), h, 3u, &acc_lo, &acc_hi);
+    let ns_lo = acc_lo >> vec4<u32>(params.shift);
+    let ns_hi = acc_hi >> vec4<u32>(params.shift);
 
     // Candidates: the current value first (ties keep it), then the k-coherent
     // candidates of the 3x3 neighbours, row-major from (-1, -1).

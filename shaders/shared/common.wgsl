@@ -38,8 +38,11 @@ struct Params {
 @group(0) @binding(3) var<storage, read> qe: array<vec4<u32>>;
 // k-coherence offsets: (k-1) x (i16 x, i16 y) per pixel, all levels.
 @group(0) @binding(4) var<storage, read> offsets: array<u32>;
-// Quantized projection P_l: 8 rows x 32 columns as 64 x vec4<i32> per level.
-@group(0) @binding(5) var<storage, read> proj: array<vec4<i32>>;
+// Quantized projection P_l, 64 x vec4<i32> per level: per diagonal block j (8x8), per
+// column c, rows 0-3 then rows 4-7.
+// A uniform (bound at this level's offset), not storage: every invocation reads the
+// same 64 vectors, and CPU drivers load storage per invocation but uniforms once.
+@group(0) @binding(5) var<uniform> proj: array<vec4<i32>, 64>;
 // Exemplar colours, RGBA8.
 @group(0) @binding(6) var<storage, read> colors: array<u32>;
 @group(0) @binding(7) var out_color: texture_storage_2d<rgba8unorm, write>;

@@ -8,11 +8,15 @@ use wgpu::util::DeviceExt;
 
 use super::context::GpuContext;
 use super::shaders::{self, ShaderSource};
-use crate::analysis::Analysis;
+use crate::analysis::{Analysis, DIM};
 use crate::error::{Error, Result};
 use crate::passes::common::{PassParams, PARAMS_STRIDE};
 use crate::passes::plan::{Dispatch, PassKind, SynthPlan};
 use crate::passes::{SynthParams, Synthesis};
+
+/// Bytes of one level's projection matrix in the uniform buffer (64 x vec4<i32>; a
+/// multiple of the 256-byte dynamic-offset alignment).
+const PROJ_BYTES: u64 = 64 * 16;
 
 /// Format of the synthesized colour texture.
 pub const OUTPUT_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
@@ -104,8 +108,14 @@ impl GpuSynthesizer {
                 et.extend_from_slice(&l.et);
                 qe.extend_from_slice(&l.qe);
                 offsets.extend_from_slice(&l.offsets);
-                for row in &l.proj {
-                    proj.extend(row.iter().map(|&v| v as i32));
+                // Per diagonal block j, per column c: rows 0-3 then rows 4-7 (the layout
+                // project_diagonal in correct.wgsl reads).
+                for j in 0..4 {
+                    for c in 0..DIM {
+                        for r in 0..DIM {
+                            proj.push(l.proj[r][j * DIM + c] as i32);
+                        }
+                    }
                 }
             }
             let init = |label: &str, contents: &[u8]| {
@@ -118,7 +128,11 @@ impl GpuSynthesizer {
             let et = init("texsyn et", &padded(&et));
             let qe = init("texsyn qe", &padded(&qe));
             let offsets = init("texsyn offsets", &padded(&offsets));
-            let proj = init("texsyn proj", &padded(&proj));
+            let proj = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("texsyn proj"),
+                contents: bytemuck::cast_slice(&proj),
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
             let colors = init("texsyn colors", &padded(&a.colors));
 
             let mut entries = vec![wgpu::BindGroupLayoutEntry {
@@ -132,9 +146,19 @@ impl GpuSynthesizer {
                 count: None,
             }];
             entries.push(storage_entry(1, false));
-            for b in 2..=6 {
+            for b in [2, 3, 4, 6] {
                 entries.push(storage_entry(b, true));
             }
+            entries.push(wgpu::BindGroupLayoutEntry {
+                binding: 5,
+                visibility: wgpu::ShaderStages::COMPUTE,
+                ty: wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Uniform,
+                    has_dynamic_offset: true,
+                    min_binding_size: wgpu::BufferSize::new(PROJ_BYTES),
+                },
+                count: None,
+            });
             entries.push(wgpu::BindGroupLayoutEntry {
                 binding: 7,
                 visibility: wgpu::ShaderStages::COMPUTE,
@@ -262,7 +286,10 @@ impl GpuSynthesizer {
                 wgpu::BindGroupEntry { binding: 2, resource: self.et.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 3, resource: self.qe.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 4, resource: self.offsets.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 5, resource: self.proj.as_entire_binding() },
+                wgpu::BindGroupEntry {
+                    binding: 5,
+                    resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding { buffer: &self.proj, offset: 0, size: wgpu::BufferSize::new(PROJ_BYTES) }),
+                },
                 wgpu::BindGroupEntry { binding: 6, resource: self.colors.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 7, resource: wgpu::BindingResource::TextureView(target) },
             ],
@@ -281,7 +308,7 @@ impl GpuSynthesizer {
                     continue;
                 }
                 pass.set_pipeline(pipeline);
-                pass.set_bind_group(0, &bind_group, &[(i as u64 * PARAMS_STRIDE) as u32]);
+                pass.set_bind_group(0, &bind_group, &[(i as u64 * PARAMS_STRIDE) as u32, d.level as u32 * PROJ_BYTES as u32]);
                 pass.dispatch_workgroups(tx.div_ceil(8), ty.div_ceil(8), 1);
             }
         }

@@ -65,8 +65,42 @@ pub fn distance(ns: &[i32; DIM], qe: &[i16; DIM]) -> u32 {
     d
 }
 
+fn full_sums(p: &PassParams, t: &LevelTables, coords: &[[i32; 2]], q: [i32; 2]) -> [[i32; DIM]; 4] {
+    let base = p.coord_base as usize;
+    let h = p.step;
+    let mut out = [[0i32; DIM]; 4];
+    for (j, d) in DIAGONALS.iter().enumerate() {
+        for dp in [*d, [d[0], 0], [0, d[1]]] {
+            let s = coords[base + region_index([q[0] + dp[0], q[1] + dp[1]], p)];
+            let u = read_coord([s[0] + h[0] * (d[0] - dp[0]), s[1] + h[1] * (d[1] - dp[1])], p);
+            let e = t.et[ex_index(u, p)];
+            for c in 0..DIM {
+                out[j][c] += e[c] as i32;
+            }
+        }
+    }
+    out
+}
+
+fn full_distance(p: &PassParams, t: &LevelTables, sums: &[[i32; DIM]; 4], c: [i32; 2]) -> u32 {
+    let h = p.step;
+    let mut d: i64 = 0;
+    for (j, dd) in DIAGONALS.iter().enumerate() {
+        let u = read_coord([c[0] + h[0] * dd[0], c[1] + h[1] * dd[1]], p);
+        let e = t.et[ex_index(u, p)];
+        for k in 0..DIM {
+            let x = (sums[j][k] - 3 * e[k] as i32) as i64;
+            d += x * x;
+        }
+    }
+    (d >> 4).min(u32::MAX as i64 / 2) as u32
+}
+
 /// New coordinate of the pixel at region position `q`.
 pub fn correct_pixel(p: &PassParams, t: &LevelTables, coords: &[[i32; 2]], q: [i32; 2]) -> [i32; 2] {
+    if std::env::var_os("TS_FULL").is_some() {
+        return correct_pixel_full(p, t, coords, q);
+    }
     let base = p.coord_base as usize;
     let h = p.step;
     let ns = synthesized_neighbourhood(p, t, coords, q);
@@ -114,4 +148,39 @@ pub fn run(p: &PassParams, t: &LevelTables, coords: &mut [[i32; 2]]) {
         }
         y += 2;
     }
+}
+
+pub fn correct_pixel_full(p: &PassParams, t: &LevelTables, coords: &[[i32; 2]], q: [i32; 2]) -> [i32; 2] {
+    let base = p.coord_base as usize;
+    let h = p.step;
+    let sums = full_sums(p, t, coords, q);
+    let current = coords[base + region_index(q, p)];
+    let mut best = current;
+    let mut best_d = u32::MAX;
+    if is_valid(current, p) {
+        best_d = full_distance(p, t, &sums, current);
+    }
+    let km1 = (p.k - 1).max(0) as usize;
+    for dy in -1..=1 {
+        for dx in -1..=1 {
+            let s = coords[base + region_index([q[0] + dx, q[1] + dy], p)];
+            for i in 0..p.k as usize {
+                let o = if i == 0 { [0, 0] } else { let o = t.offsets[ex_index(s, p) * km1 + i - 1]; [o[0] as i32, o[1] as i32] };
+                let raw = [s[0] + o[0] - h[0] * dx, s[1] + o[1] - h[1] * dy];
+                if !is_valid(raw, p) {
+                    continue;
+                }
+                let c = fit_near(raw, p);
+                let mut d = full_distance(p, t, &sums, c);
+                if i > 0 {
+                    d = d.saturating_add((d >> 4).saturating_mul(p.coherence));
+                }
+                if d < best_d {
+                    best_d = d;
+                    best = c;
+                }
+            }
+        }
+    }
+    best
 }
