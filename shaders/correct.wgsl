@@ -7,9 +7,10 @@ fn et_at(c: vec2<i32>, lo: ptr<function, vec4<i32>>, hi: ptr<function, vec4<i32>
     unpack8(et[params.et_base + ex_index(c)], lo, hi);
 }
 
-// Squared distance between the synthesized neighbourhood (ns_lo, ns_hi) and the
-// exemplar neighbourhood of candidate c; differences clamped so 8 squares fit in a u32.
-fn cand_distance(ns_lo: vec4<i32>, ns_hi: vec4<i32>, c: vec2<i32>) -> u32 {
+// Projected (8D) distance between the synthesized neighbourhood (ns_lo, ns_hi) and
+// the exemplar side of candidate c; differences clamped so 8 squares (times the
+// coherence bias) fit in a u32.
+fn projected_distance(ns_lo: vec4<i32>, ns_hi: vec4<i32>, c: vec2<i32>) -> u32 {
     var e_lo: vec4<i32>;
     var e_hi: vec4<i32>;
     unpack8(qe[params.et_base + ex_index(c)], &e_lo, &e_hi);
@@ -20,10 +21,20 @@ fn cand_distance(ns_lo: vec4<i32>, ns_hi: vec4<i32>, c: vec2<i32>) -> u32 {
     return sq.x + sq.y + sq.z + sq.w;
 }
 
-// Adds P_j * (sum of the three predictions of the appearance at q + d) to the
-// accumulator. P is stored per diagonal block j as 8 columns of two vec4 (rows 0-3,
-// rows 4-7), so the product is 16 vector multiply-adds.
-fn project_diagonal(q: vec2<i32>, d: vec2<i32>, h: vec2<i32>, j: u32, acc_lo: ptr<function, vec4<i32>>, acc_hi: ptr<function, vec4<i32>>) {
+// One diagonal's share of the full (32D) distance: prediction sums against
+// 3 Et[c + h D], differences shifted right by 2 so 32 squares fit in a u32.
+fn full_term(s_lo: vec4<i32>, s_hi: vec4<i32>, u: vec2<i32>) -> u32 {
+    var lo: vec4<i32>;
+    var hi: vec4<i32>;
+    et_at(read_coord(u), &lo, &hi);
+    let a = vec4<u32>((s_lo - 3 * lo) >> vec4<u32>(2u));
+    let b = vec4<u32>((s_hi - 3 * hi) >> vec4<u32>(2u));
+    let sq = a * a + b * b;
+    return sq.x + sq.y + sq.z + sq.w;
+}
+
+// Sum of the three predictions of Et at q + d (3 N_S(q; d)).
+fn prediction_sum(q: vec2<i32>, d: vec2<i32>, h: vec2<i32>, s_lo: ptr<function, vec4<i32>>, s_hi: ptr<function, vec4<i32>>) {
     var lo: vec4<i32>;
     var hi: vec4<i32>;
     et_at(read_coord(coords[region_index(q + d)]), &lo, &hi);
@@ -33,8 +44,13 @@ fn project_diagonal(q: vec2<i32>, d: vec2<i32>, h: vec2<i32>, j: u32, acc_lo: pt
     sum_lo += lo;
     sum_hi += hi;
     et_at(read_coord(coords[region_index(q + vec2<i32>(0, d.y))] + vec2<i32>(h.x * d.x, 0)), &lo, &hi);
-    sum_lo += lo;
-    sum_hi += hi;
+    *s_lo = sum_lo + lo;
+    *s_hi = sum_hi + hi;
+}
+
+// Adds P_j * sum to the accumulator. P is stored per diagonal block j as 8 columns of
+// two vec4 (rows 0-3, rows 4-7), so the product is 16 vector multiply-adds.
+fn project_add(j: u32, sum_lo: vec4<i32>, sum_hi: vec4<i32>, acc_lo: ptr<function, vec4<i32>>, acc_hi: ptr<function, vec4<i32>>) {
     let b = 16u * j;
     *acc_lo += proj[b + 0u] * sum_lo.x + proj[b + 2u] * sum_lo.y + proj[b + 4u] * sum_lo.z + proj[b + 6u] * sum_lo.w
         + proj[b + 8u] * sum_hi.x + proj[b + 10u] * sum_hi.y + proj[b + 12u] * sum_hi.z + proj[b + 14u] * sum_hi.w;
@@ -51,17 +67,28 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let h = params.step;
 
-    // Synthesized neighbourhood: per diagonal, the sum of three predictions, projected
-    // by that diagonal's 8x8 block of P. Written out without local arrays: CPU drivers
-    // turn dynamically indexed local arrays into per-lane memory traffic.
-    var acc_lo = vec4<i32>(0);
-    var acc_hi = vec4<i32>(0);
-    project_diagonal(q, vec2<i32>(1, 1), h, 0u, &acc_lo, &acc_hi);
-    project_diagonal(q, vec2<i32>(1, -1), h, 1u, &acc_lo, &acc_hi);
-    project_diagonal(q, vec2<i32>(-1, 1), h, 2u, &acc_lo, &acc_hi);
-    project_diagonal(q, vec2<i32>(-1, -1), h, 3u, &acc_lo, &acc_hi);
-    let ns_lo = acc_lo >> vec4<u32>(params.shift);
-    let ns_hi = acc_hi >> vec4<u32>(params.shift);
+    // Synthesized neighbourhood: per diagonal, the sum of three predictions. Written
+    // out without local arrays: CPU drivers turn dynamically indexed local arrays into
+    // per-lane memory traffic.
+    var s0l: vec4<i32>; var s0h: vec4<i32>;
+    var s1l: vec4<i32>; var s1h: vec4<i32>;
+    var s2l: vec4<i32>; var s2h: vec4<i32>;
+    var s3l: vec4<i32>; var s3h: vec4<i32>;
+    prediction_sum(q, vec2<i32>(1, 1), h, &s0l, &s0h);
+    prediction_sum(q, vec2<i32>(1, -1), h, &s1l, &s1h);
+    prediction_sum(q, vec2<i32>(-1, 1), h, &s2l, &s2h);
+    prediction_sum(q, vec2<i32>(-1, -1), h, &s3l, &s3h);
+    let full = params.full_distance != 0u;
+    var ns_lo = vec4<i32>(0);
+    var ns_hi = vec4<i32>(0);
+    if (!full) {
+        project_add(0u, s0l, s0h, &ns_lo, &ns_hi);
+        project_add(1u, s1l, s1h, &ns_lo, &ns_hi);
+        project_add(2u, s2l, s2h, &ns_lo, &ns_hi);
+        project_add(3u, s3l, s3h, &ns_lo, &ns_hi);
+        ns_lo = ns_lo >> vec4<u32>(params.shift);
+        ns_hi = ns_hi >> vec4<u32>(params.shift);
+    }
 
     // Candidates: the current value first (ties keep it), then the k-coherent
     // candidates of the 3x3 neighbours, row-major from (-1, -1).
@@ -69,7 +96,12 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     var best = coords[self_index];
     var best_d = 0xffffffffu;
     if (is_valid(best)) {
-        best_d = cand_distance(ns_lo, ns_hi, best);
+        if (full) {
+            best_d = full_term(s0l, s0h, best + h) + full_term(s1l, s1h, best + vec2<i32>(h.x, -h.y))
+                + full_term(s2l, s2h, best + vec2<i32>(-h.x, h.y)) + full_term(s3l, s3h, best - h);
+        } else {
+            best_d = projected_distance(ns_lo, ns_hi, best);
+        }
     }
     let km1 = u32(max(params.k - 1, 0));
     for (var dy = -1; dy <= 1; dy++) {
@@ -88,7 +120,13 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
                     continue;
                 }
                 let c = fit_near(raw);
-                var dist = cand_distance(ns_lo, ns_hi, c);
+                var dist: u32;
+                if (full) {
+                    dist = full_term(s0l, s0h, c + h) + full_term(s1l, s1h, c + vec2<i32>(h.x, -h.y))
+                        + full_term(s2l, s2h, c + vec2<i32>(-h.x, h.y)) + full_term(s3l, s3h, c - h);
+                } else {
+                    dist = projected_distance(ns_lo, ns_hi, c);
+                }
                 if (i > 0) {
                     dist += (dist >> 4u) * params.coherence;
                 }

@@ -15,5 +15,5 @@ mod shader_preprocess;
 
 pub use analysis::{Analysis, AnalysisOptions, Exemplar};
 pub use error::{Error, Result};
-pub use passes::{SynthParams, Synthesis};
+pub use passes::{DistanceMode, SynthParams, Synthesis};
 pub use session::{Session, SessionBuilder, Texture};

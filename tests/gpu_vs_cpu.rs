@@ -146,3 +146,13 @@ fn windows_agree_on_their_overlap() {
         }
     }
 }
+
+#[test]
+fn every_distance_mode_matches_cpu() {
+    for (tileable, distance) in [(false, texsyn::DistanceMode::Projected), (true, texsyn::DistanceMode::Full), (true, texsyn::DistanceMode::Projected)] {
+        let a = analysis(tileable, 2);
+        let params = SynthParams { width: 40, height: 36, seed: 8, distance, finest_passes: 2, coherence: 4.0, ..Default::default() };
+        let gpu = GpuSynthesizer::new(ctx(), a.clone()).unwrap();
+        assert_eq!(gpu.synthesize_to_host(ctx(), &params).unwrap(), synthesize_cpu(&a, &params).unwrap(), "{distance:?}, tileable {tileable}");
+    }
+}

@@ -26,7 +26,10 @@ struct Params {
     parent_coord_base: u32,
     window_offset: vec2<i32>,
     window_size: vec2<i32>,
-    _pad: vec4<u32>,
+    full_distance: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: Params;
@@ -47,7 +50,8 @@ struct Params {
 @group(0) @binding(6) var<storage, read> colors: array<u32>;
 @group(0) @binding(7) var out_color: texture_storage_2d<rgba8unorm, write>;
 
-const QE_MAX: i32 = 8191;
+// Same as crate::analysis::QE_MAX.
+const QE_MAX: i32 = 4095;
 
 fn hash32(v: u32) -> u32 {
     var x = v;

@@ -22,8 +22,9 @@ pub const ET_QMAX: f32 = 2047.0;
 /// Largest |value| of a quantized projection-matrix entry (rows are unit vectors).
 pub const PROJ_QMAX: f32 = 127.0;
 /// Projected neighbourhood values are shifted right until they fit in this range so that
-/// 8 squared differences (clamped to 2*QE_MAX) fit in a u32.
-pub const QE_MAX: i32 = 8191;
+/// 8 squared differences (clamped to 2*QE_MAX) fit in a u32 even after the largest
+/// coherence bias (distance x 5).
+pub const QE_MAX: i32 = 4095;
 /// Largest k supported by the GPU passes.
 pub const MAX_K: u32 = 8;
 

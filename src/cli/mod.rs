@@ -261,8 +261,8 @@ pub fn parse_coherence(s: &str) -> Result<f32, String> {
         .trim()
         .parse()
         .map_err(|_| format!("\"{s}\" is not a number"))?;
-    if !v.is_finite() || !(0.0..=1.0).contains(&v) {
-        return Err(format!("coherence {s} must be between 0 and 1"));
+    if !v.is_finite() || !(0.0..=4.0).contains(&v) {
+        return Err(format!("coherence {s} must be between 0 and 4"));
     }
     Ok(v)
 }
@@ -424,7 +424,17 @@ mod tests {
         for bad in ["", "1", "1,2,3", "a,b", "1.5,2", "999999999,0"] {
             assert!(parse_window(bad).is_err(), "{bad}");
         }
-        assert!(parse_coherence("1.5").is_err());
+        assert!(parse_coherence("4.5").is_err());
         assert_eq!(parse_coherence("0.25"), Ok(0.25));
+    }
+}
+
+/// `--distance projected|full|mixed`.
+pub fn parse_distance(s: &str) -> Result<texsyn::DistanceMode, String> {
+    match s.trim().to_ascii_lowercase().as_str() {
+        "projected" => Ok(texsyn::DistanceMode::Projected),
+        "full" => Ok(texsyn::DistanceMode::Full),
+        "mixed" => Ok(texsyn::DistanceMode::Mixed),
+        _ => Err(format!("\"{s}\": the distance is projected, full or mixed")),
     }
 }

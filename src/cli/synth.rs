@@ -42,22 +42,33 @@ pub struct SynthArgs {
     pub seed: u32,
 
     /// Jitter randomness in [0, 2]: one value for every level, or R0,R1,... per level
-    /// (coarsest first, the last repeats). Default: 0.5 coarse, 0.25 next-to-finest,
-    /// 0 finest
+    /// (coarsest first, the last repeats). Default: 1 on the coarse levels, 0.5 on the
+    /// fourth-finest, 0 on the three finest
     #[arg(long, value_name = "R|R0,R1,...", value_parser = parse_randomness)]
     pub randomness: Option<Randomness>,
 
-    /// Correction passes per level (0..=16; each is 4 subpasses)
+    /// Correction passes on every level but the finest (0..=16; each is 4 subpasses)
     #[arg(long, value_name = "P", default_value_t = SynthParams::default().passes,
           value_parser = clap::value_parser!(u32).range(0..=16))]
     pub passes: u32,
+
+    /// Correction passes on the finest level (0..=16)
+    #[arg(long, value_name = "P", default_value_t = SynthParams::default().finest_passes,
+          value_parser = clap::value_parser!(u32).range(0..=16))]
+    pub finest_passes: u32,
+
+    /// Neighbourhood distance: projected (the paper's 8D), full (32D) or mixed (full on
+    /// the coarse levels, projected on the finest)
+    #[arg(long, value_name = "MODE", default_value = "mixed", value_parser = super::parse_distance)]
+    pub distance: texsyn::DistanceMode,
 
     /// Similarity-set size used when analysing an image (1..=8; default 2). With an
     /// analysis file it must match the file's
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=MAX_K as i64))]
     pub k: Option<u32>,
 
-    /// Bias towards coherent candidates in [0, 1] (0 = none)
+    /// Bias towards coherent candidates in [0, 4]: other candidates' distances are
+    /// multiplied by 1 + C
     #[arg(long, value_name = "C", default_value_t = SynthParams::default().coherence, value_parser = parse_coherence)]
     pub coherence: f32,
 
@@ -178,7 +189,9 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
         seed: args.seed,
         randomness: args.randomness.clone().map(|r| r.0).unwrap_or_default(),
         passes: args.passes,
+        finest_passes: args.finest_passes,
         coherence: args.coherence,
+        distance: args.distance,
     };
     // Validate the parameters before uploading anything.
     texsyn::passes::SynthPlan::new(&analysis, &params)?;

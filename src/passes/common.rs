@@ -47,7 +47,9 @@ pub struct PassParams {
     /// Output window inside this level's region (gather pass).
     pub window_offset: [i32; 2],
     pub window_size: [i32; 2],
-    pub _pad: [u32; 4],
+    /// 1: full 32D distance, 0: projected 8D distance (see `correct.rs`).
+    pub full_distance: u32,
+    pub _pad: [u32; 3],
 }
 
 /// Dynamic uniform offsets must be multiples of this (the WebGPU default limit).

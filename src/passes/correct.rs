@@ -4,10 +4,17 @@
 //!
 //! Neighbourhood (isometric): for each diagonal `D`, three predictions of the appearance
 //! at `p + D` from the pixels `p + D'`, `D' in {D, (D.x,0), (0,D.y)}`:
-//! `Et[S[p+D'] + h (D - D')]`. Their integer sum per diagonal, times the quantized
-//! projection block `P_D`, summed over the diagonals, is `3 * Np_S` in the units of the
-//! exemplar side `qe` (`3 * P N_E`). Both are shifted by `shift`, so the comparison is
-//! exact integer arithmetic.
+//! `Et[S[p+D'] + h (D - D')]`, summed in integers (`3 N_S(p;D)`).
+//!
+//! Distance, two modes (`p.full_distance`):
+//! - *projected* (the paper): the four sums times the quantized projection blocks
+//!   `P_D`, summed, is `3 * Np_S`, compared in 8D with the exemplar side `qe`
+//!   (`3 * P N_E`), both shifted right by `shift`;
+//! - *full*: the 32D sums compared directly with `3 Et[c + h D]` at the candidate's four
+//!   diagonal neighbours (differences shifted right by 2 so 32 squares fit a u32). It
+//!   keeps the ~10-20% of neighbourhood variance the 8D projection drops, and costs
+//!   four reads per candidate instead of one; texsyn uses it on the coarse levels,
+//!   which are small, and the projected distance on the finest.
 //!
 //! Candidates: `S[p+d] + O_i(S[p+d]) - h d` for `d` in the 3x3 block (row-major from
 //! (-1,-1)), `i = 1..k` (i = 1 is the coherent candidate, offset 0). The first candidate
@@ -31,41 +38,8 @@ fn ex_index(c: [i32; 2], p: &PassParams) -> usize {
     (c[1] * p.ex_size[0] + c[0]) as usize
 }
 
-/// `3 * P * N_S(p)` shifted, for the pixel at region position `q`.
-pub fn synthesized_neighbourhood(p: &PassParams, t: &LevelTables, coords: &[[i32; 2]], q: [i32; 2]) -> [i32; DIM] {
-    let base = p.coord_base as usize;
-    let h = p.step;
-    let mut acc = [0i32; DIM];
-    for (j, d) in DIAGONALS.iter().enumerate() {
-        let mut sum = [0i32; DIM];
-        for dp in [*d, [d[0], 0], [0, d[1]]] {
-            let s = coords[base + region_index([q[0] + dp[0], q[1] + dp[1]], p)];
-            let u = read_coord([s[0] + h[0] * (d[0] - dp[0]), s[1] + h[1] * (d[1] - dp[1])], p);
-            let e = t.et[ex_index(u, p)];
-            for c in 0..DIM {
-                sum[c] += e[c] as i32;
-            }
-        }
-        for (r, a) in acc.iter_mut().enumerate() {
-            for c in 0..DIM {
-                *a += t.proj[r][j * DIM + c] as i32 * sum[c];
-            }
-        }
-    }
-    acc.map(|v| v >> p.shift)
-}
-
-#[inline]
-pub fn distance(ns: &[i32; DIM], qe: &[i16; DIM]) -> u32 {
-    let mut d = 0u32;
-    for c in 0..DIM {
-        let x = (ns[c] - qe[c] as i32).clamp(-2 * QE_MAX, 2 * QE_MAX);
-        d += (x * x) as u32;
-    }
-    d
-}
-
-fn full_sums(p: &PassParams, t: &LevelTables, coords: &[[i32; 2]], q: [i32; 2]) -> [[i32; DIM]; 4] {
+/// Per diagonal, the sum of the three predictions of `Et` at `q + D` (`3 N_S(q;D)`).
+pub fn prediction_sums(p: &PassParams, t: &LevelTables, coords: &[[i32; 2]], q: [i32; 2]) -> [[i32; DIM]; 4] {
     let base = p.coord_base as usize;
     let h = p.step;
     let mut out = [[0i32; DIM]; 4];
@@ -82,48 +56,84 @@ fn full_sums(p: &PassParams, t: &LevelTables, coords: &[[i32; 2]], q: [i32; 2]) 
     out
 }
 
-fn full_distance(p: &PassParams, t: &LevelTables, sums: &[[i32; DIM]; 4], c: [i32; 2]) -> u32 {
-    let h = p.step;
-    let mut d: i64 = 0;
-    for (j, dd) in DIAGONALS.iter().enumerate() {
-        let u = read_coord([c[0] + h[0] * dd[0], c[1] + h[1] * dd[1]], p);
-        let e = t.et[ex_index(u, p)];
-        for k in 0..DIM {
-            let x = (sums[j][k] - 3 * e[k] as i32) as i64;
-            d += x * x;
+/// `3 * P * N_S` shifted: the projected synthesized neighbourhood.
+pub fn project(p: &PassParams, t: &LevelTables, sums: &[[i32; DIM]; 4]) -> [i32; DIM] {
+    let mut acc = [0i32; DIM];
+    for (j, sum) in sums.iter().enumerate() {
+        for (r, a) in acc.iter_mut().enumerate() {
+            for c in 0..DIM {
+                *a += t.proj[r][j * DIM + c] as i32 * sum[c];
+            }
         }
     }
-    (d >> 4).min(u32::MAX as i64 / 2) as u32
+    acc.map(|v| v >> p.shift)
+}
+
+/// Projected (8D) distance to the exemplar side of candidate `c`.
+#[inline]
+pub fn projected_distance(ns: &[i32; DIM], qe: &[i16; DIM]) -> u32 {
+    let mut d = 0u32;
+    for c in 0..DIM {
+        let x = (ns[c] - qe[c] as i32).clamp(-2 * QE_MAX, 2 * QE_MAX);
+        d += (x * x) as u32;
+    }
+    d
+}
+
+/// Full (32D) distance between the prediction sums and `3 Et` around candidate `c`.
+#[inline]
+pub fn full_distance(p: &PassParams, t: &LevelTables, sums: &[[i32; DIM]; 4], c: [i32; 2]) -> u32 {
+    let h = p.step;
+    let mut d = 0u32;
+    for (j, dd) in DIAGONALS.iter().enumerate() {
+        let e = t.et[ex_index(read_coord([c[0] + h[0] * dd[0], c[1] + h[1] * dd[1]], p), p)];
+        for k in 0..DIM {
+            let x = (sums[j][k] - 3 * e[k] as i32) >> 2;
+            d += (x * x) as u32;
+        }
+    }
+    d
 }
 
 /// New coordinate of the pixel at region position `q`.
 pub fn correct_pixel(p: &PassParams, t: &LevelTables, coords: &[[i32; 2]], q: [i32; 2]) -> [i32; 2] {
-    if std::env::var_os("TS_FULL").is_some() {
-        return correct_pixel_full(p, t, coords, q);
-    }
     let base = p.coord_base as usize;
     let h = p.step;
-    let ns = synthesized_neighbourhood(p, t, coords, q);
+    let sums = prediction_sums(p, t, coords, q);
+    let full = p.full_distance != 0;
+    let ns = if full { [0; DIM] } else { project(p, t, &sums) };
+    let distance = |c: [i32; 2]| {
+        if full {
+            full_distance(p, t, &sums, c)
+        } else {
+            projected_distance(&ns, &t.qe[ex_index(c, p)])
+        }
+    };
     let current = coords[base + region_index(q, p)];
     let mut best = current;
     let mut best_d = u32::MAX;
     if is_valid(current, p) {
-        best_d = distance(&ns, &t.qe[ex_index(current, p)]);
+        best_d = distance(current);
     }
     let km1 = (p.k - 1).max(0) as usize;
     for dy in -1..=1 {
         for dx in -1..=1 {
             let s = coords[base + region_index([q[0] + dx, q[1] + dy], p)];
             for i in 0..p.k as usize {
-                let o = if i == 0 { [0, 0] } else { let o = t.offsets[ex_index(s, p) * km1 + i - 1]; [o[0] as i32, o[1] as i32] };
+                let o = if i == 0 {
+                    [0, 0]
+                } else {
+                    let o = t.offsets[ex_index(s, p) * km1 + i - 1];
+                    [o[0] as i32, o[1] as i32]
+                };
                 let raw = [s[0] + o[0] - h[0] * dx, s[1] + o[1] - h[1] * dy];
                 if !is_valid(raw, p) {
                     continue;
                 }
                 let c = fit_near(raw, p);
-                let mut d = distance(&ns, &t.qe[ex_index(c, p)]);
+                let mut d = distance(c);
                 if i > 0 {
-                    d = d.saturating_add((d >> 4).saturating_mul(p.coherence));
+                    d += (d >> 4) * p.coherence;
                 }
                 if d < best_d {
                     best_d = d;
@@ -148,39 +158,4 @@ pub fn run(p: &PassParams, t: &LevelTables, coords: &mut [[i32; 2]]) {
         }
         y += 2;
     }
-}
-
-pub fn correct_pixel_full(p: &PassParams, t: &LevelTables, coords: &[[i32; 2]], q: [i32; 2]) -> [i32; 2] {
-    let base = p.coord_base as usize;
-    let h = p.step;
-    let sums = full_sums(p, t, coords, q);
-    let current = coords[base + region_index(q, p)];
-    let mut best = current;
-    let mut best_d = u32::MAX;
-    if is_valid(current, p) {
-        best_d = full_distance(p, t, &sums, current);
-    }
-    let km1 = (p.k - 1).max(0) as usize;
-    for dy in -1..=1 {
-        for dx in -1..=1 {
-            let s = coords[base + region_index([q[0] + dx, q[1] + dy], p)];
-            for i in 0..p.k as usize {
-                let o = if i == 0 { [0, 0] } else { let o = t.offsets[ex_index(s, p) * km1 + i - 1]; [o[0] as i32, o[1] as i32] };
-                let raw = [s[0] + o[0] - h[0] * dx, s[1] + o[1] - h[1] * dy];
-                if !is_valid(raw, p) {
-                    continue;
-                }
-                let c = fit_near(raw, p);
-                let mut d = full_distance(p, t, &sums, c);
-                if i > 0 {
-                    d = d.saturating_add((d >> 4).saturating_mul(p.coherence));
-                }
-                if d < best_d {
-                    best_d = d;
-                    best = c;
-                }
-            }
-        }
-    }
-    best
 }

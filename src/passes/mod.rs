@@ -9,7 +9,7 @@ pub mod jitter;
 pub mod plan;
 pub mod upsample;
 
-pub use plan::{LevelPlan, SynthPlan, SynthParams};
+pub use plan::{DistanceMode, LevelPlan, SynthParams, SynthPlan};
 
 use crate::analysis::Analysis;
 use crate::error::Result;
