@@ -178,18 +178,30 @@ impl SessionBuilder {
                 f(p)
             }
         };
-        let analysis = match self.source {
-            Source::None => return Err(Error::InvalidParameter("no exemplar given: call exemplar_path, exemplar or analysis".into())),
-            Source::Analysis(a) => a,
-            Source::Exemplar(e) => analysis::analyze(&e, &self.options, &mut report)?,
-            Source::Path(p) => load_source(&p, &self.options, &mut report)?,
-        };
-        // Validate the parameters before touching the GPU.
-        crate::passes::SynthPlan::new(&analysis, &self.params)?;
         let context = match self.context {
             Some(c) => c,
             None => GpuContext::headless()?,
         };
+        let fits = |w, h| crate::gpu::synth::check_exemplar_fits(&context, w, h, self.options.k);
+        let analysis = match self.source {
+            Source::None => return Err(Error::InvalidParameter("no exemplar given: call exemplar_path, exemplar or analysis".into())),
+            Source::Analysis(a) => a,
+            Source::Exemplar(e) => {
+                fits(e.width, e.height)?;
+                analysis::analyze(&e, &self.options, &mut report)?
+            }
+            Source::Path(p) => {
+                if is_analysis_file(&p)? {
+                    Analysis::load(&p)?
+                } else {
+                    let e = crate::image_io::load_exemplar(&p)?;
+                    fits(e.width, e.height)?;
+                    analysis::analyze(&e, &self.options, &mut report)?
+                }
+            }
+        };
+        // Validate the parameters before uploading.
+        crate::passes::SynthPlan::new(&analysis, &self.params)?;
         let synthesizer = GpuSynthesizer::new(&context, Arc::new(analysis))?;
         Ok(Session { context, synthesizer, params: self.params })
     }

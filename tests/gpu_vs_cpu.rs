@@ -156,3 +156,10 @@ fn every_distance_mode_matches_cpu() {
         assert_eq!(gpu.synthesize_to_host(ctx(), &params).unwrap(), synthesize_cpu(&a, &params).unwrap(), "{distance:?}, tileable {tileable}");
     }
 }
+
+#[test]
+fn exemplar_too_large_for_the_device_is_a_clear_error() {
+    let e = texsyn::gpu::synth::check_exemplar_fits(ctx(), 16384, 16384, 2).unwrap_err().to_string();
+    assert!(e.contains("larger than this device allows") && e.contains("MiB"), "{e}");
+    texsyn::gpu::synth::check_exemplar_fits(ctx(), 256, 256, 2).unwrap();
+}

@@ -81,23 +81,9 @@ impl GpuSynthesizer {
     /// exemplar tables exceed the device's buffer limits.
     pub fn new(ctx: &GpuContext, analysis: Arc<Analysis>) -> Result<Self> {
         let a = &*analysis;
-        let limits = ctx.limits();
+        check_exemplar_fits(ctx, a.width, a.height, a.k)?;
         let px = a.width as u64 * a.height as u64;
         let levels = a.levels.len() as u64;
-        let table_bytes = px * levels * 16;
-        let offset_bytes = px * levels * 4 * (a.k.saturating_sub(1) as u64);
-        let max_binding = limits.max_storage_buffer_binding_size as u64;
-        let max_buffer = limits.max_buffer_size;
-        let biggest = table_bytes.max(offset_bytes);
-        if biggest > max_binding.min(max_buffer) {
-            return Err(too_large(
-                "exemplar",
-                a.width,
-                a.height,
-                format!("its tables need {} MiB in one buffer, the device allows {} MiB", biggest >> 20, max_binding.min(max_buffer) >> 20),
-                "use a smaller exemplar (downsample it) or a smaller k",
-            ));
-        }
         let device = &ctx.device;
         ctx.scoped(|| {
             let mut et = Vec::with_capacity((px * levels) as usize);
@@ -425,6 +411,28 @@ impl GpuSynthesizer {
         let data = read_buffer(ctx, &readback)?;
         Ok(bytemuck::cast_slice(&data).to_vec())
     }
+}
+
+/// Checks, before any analysis, that an exemplar of this size fits the device's
+/// buffer limits (its per-level tables live in single storage buffers).
+pub fn check_exemplar_fits(ctx: &GpuContext, width: u32, height: u32, k: u32) -> Result<()> {
+    let limits = ctx.limits();
+    let px = width as u64 * height as u64;
+    let levels = crate::analysis::level_count(width, height) as u64 + 1;
+    let table_bytes = px * levels * 16;
+    let offset_bytes = px * levels * 4 * (k.saturating_sub(1) as u64);
+    let max = (limits.max_storage_buffer_binding_size as u64).min(limits.max_buffer_size);
+    let biggest = table_bytes.max(offset_bytes);
+    if biggest > max {
+        return Err(too_large(
+            "exemplar",
+            width,
+            height,
+            format!("its tables need {} MiB in one buffer, the device allows {} MiB", biggest >> 20, max >> 20),
+            "use a smaller exemplar (downsample it) or a smaller k",
+        ));
+    }
+    Ok(())
 }
 
 fn wait(ctx: &GpuContext) -> Result<()> {
