@@ -120,6 +120,12 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
                     continue;
                 }
                 let c = fit_near(raw);
+                // The best so far cannot be beaten by itself (ties keep it, the bias
+                // only adds): skipping it changes nothing and saves most of the work
+                // in coherent areas, where the neighbours all propose the same pixel.
+                if (all(c == best)) {
+                    continue;
+                }
                 var dist: u32;
                 if (full) {
                     dist = full_term(s0l, s0h, c + h) + full_term(s1l, s1h, c + vec2<i32>(h.x, -h.y))

@@ -48,10 +48,19 @@ pub struct BenchArgs {
     #[arg(long, value_name = "S", default_value_t = SynthParams::default().seed)]
     pub seed: u32,
 
-    /// Correction passes per level (0..=16)
+    /// Correction passes on every level but the finest (0..=16)
     #[arg(long, value_name = "P", default_value_t = SynthParams::default().passes,
           value_parser = clap::value_parser!(u32).range(0..=16))]
     pub passes: u32,
+
+    /// Correction passes on the finest level (0..=16)
+    #[arg(long, value_name = "P", default_value_t = SynthParams::default().finest_passes,
+          value_parser = clap::value_parser!(u32).range(0..=16))]
+    pub finest_passes: u32,
+
+    /// Neighbourhood distance: projected, full or mixed
+    #[arg(long, value_name = "MODE", default_value = "mixed", value_parser = super::parse_distance)]
+    pub distance: texsyn::DistanceMode,
 }
 
 struct Stats {
@@ -179,6 +188,8 @@ pub fn run(ui: &Ui, args: BenchArgs) -> CliResult<()> {
             height: h,
             seed: args.seed,
             passes: args.passes,
+            finest_passes: args.finest_passes,
+            distance: args.distance,
             ..SynthParams::default()
         };
         let row = check_output_size(&ctx, w, h).and_then(|()| {

@@ -131,6 +131,10 @@ pub fn correct_pixel(p: &PassParams, t: &LevelTables, coords: &[[i32; 2]], q: [i
                     continue;
                 }
                 let c = fit_near(raw, p);
+                // The best so far cannot beat itself (ties keep it; the bias only adds).
+                if c == best {
+                    continue;
+                }
                 let mut d = distance(c);
                 if i > 0 {
                     d += (d >> 4) * p.coherence;
