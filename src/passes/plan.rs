@@ -67,9 +67,19 @@ impl Default for SynthParams {
 /// Default per-level randomness: a whole pixel at the coarse levels, so features are
 /// rearranged rather than the exemplar's layout reproduced, none at the three finest
 /// levels so exemplar detail stays intact (measured: fine-level jitter raises the
-/// texture energy more than it adds variety).
-pub fn default_randomness(level: u32, finest: u32) -> f32 {
-    match finest.saturating_sub(level) {
+/// texture energy more than it adds variety). Small exemplars (under 96 pixels a side)
+/// get jitter down to the next-to-finest level: their coherent patches otherwise cover
+/// a large part of the exemplar (measured up to 75% on a 64x62 one, 24% with this).
+pub fn default_randomness(level: u32, finest: u32, exemplar_min_side: u32) -> f32 {
+    let from_finest = finest.saturating_sub(level);
+    if exemplar_min_side < 96 {
+        return match from_finest {
+            0 => 0.0,
+            1 => 0.5,
+            _ => 1.0,
+        };
+    }
+    match from_finest {
         0..=2 => 0.0,
         3 => 0.5,
         _ => 1.0,
@@ -159,7 +169,7 @@ impl SynthPlan {
         for (level, rlo, rhi) in rev {
             let size = [(rhi[0] - rlo[0]) as u32, (rhi[1] - rlo[1]) as u32];
             let randomness = if params.randomness.is_empty() {
-                default_randomness(level, last)
+                default_randomness(level, last, analysis.width.min(analysis.height))
             } else {
                 let i = (level as usize).min(params.randomness.len() - 1);
                 params.randomness[i]
