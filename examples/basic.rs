@@ -8,7 +8,9 @@
 use texsyn::Session;
 
 fn main() -> texsyn::Result<()> {
-    let out = std::env::args().nth(1).unwrap_or_else(|| "out.png".to_string());
+    let out = std::env::args()
+        .nth(1)
+        .unwrap_or_else(|| "out.png".to_string());
     let exemplar = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/gravel.png");
 
     // Analysis (CPU) + device creation + upload; the analysis could also come from a
@@ -26,8 +28,18 @@ fn main() -> texsyn::Result<()> {
     println!("wrote {out} ({}x{})", texture.width(), texture.height());
 
     // Same exemplar, other parameters: another seed, a non-square window.
-    let params = texsyn::SynthParams { seed: 8, width: 320, height: 200, ..session.params().clone() };
+    let params = texsyn::SynthParams {
+        seed: 8,
+        width: 320,
+        height: 200,
+        ..session.params().clone()
+    };
     let other = session.run_with(&params)?;
-    println!("seed 8: {}x{}, {} RGBA8 bytes", other.width(), other.height(), other.rgba8().len());
+    println!(
+        "seed 8: {}x{}, {} RGBA8 bytes",
+        other.width(),
+        other.height(),
+        other.rgba8().len()
+    );
     Ok(())
 }

@@ -36,7 +36,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .build()?;
 
     // --- Record a synthesis into the app's encoder, next to its own work. -----------
-    let params = SynthParams { width: 256, height: 128, seed: 3, ..SynthParams::default() };
+    let params = SynthParams {
+        width: 256,
+        height: 128,
+        seed: 3,
+        ..SynthParams::default()
+    };
     let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
         label: Some("host frame"),
     });
@@ -55,7 +60,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         synthesis.texture.as_image_copy(),
         wgpu::TexelCopyBufferInfo {
             buffer: &readback,
-            layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(row), rows_per_image: Some(h) },
+            layout: wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(row),
+                rows_per_image: Some(h),
+            },
         },
         synthesis.texture.size(),
     );
@@ -72,7 +81,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut sum = 0u64;
     for y in 0..h as usize {
         let start = y * row as usize;
-        sum += mapped[start..start + w as usize * 4].iter().map(|&b| b as u64).sum::<u64>();
+        sum += mapped[start..start + w as usize * 4]
+            .iter()
+            .map(|&b| b as u64)
+            .sum::<u64>();
     }
     drop(mapped);
     readback.unmap();

@@ -65,7 +65,12 @@ impl Session {
     /// Synthesizes with other parameters (size, window, seed, ...), same exemplar.
     pub fn run_with(&self, params: &SynthParams) -> Result<Texture> {
         let s = self.synthesizer.synthesize_to_host(&self.context, params)?;
-        Ok(Texture { synthesis: s, channels: self.analysis().channels, exemplar_size: [self.analysis().width, self.analysis().height], tileable: self.analysis().tileable })
+        Ok(Texture {
+            synthesis: s,
+            channels: self.analysis().channels,
+            exemplar_size: [self.analysis().width, self.analysis().height],
+            tileable: self.analysis().tileable,
+        })
     }
 
     /// Synthesizes into a new GPU texture (`Rgba8Unorm`); nothing is read back.
@@ -75,7 +80,11 @@ impl Session {
 
     /// Records a synthesis into the caller's command encoder (for embedding in a
     /// frame); the texture is ready once the caller submits the encoder.
-    pub fn encode(&self, encoder: &mut wgpu::CommandEncoder, params: &SynthParams) -> Result<GpuSynthesis> {
+    pub fn encode(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        params: &SynthParams,
+    ) -> Result<GpuSynthesis> {
         self.synthesizer.encode(&self.context, encoder, params)
     }
 
@@ -184,7 +193,11 @@ impl SessionBuilder {
         };
         let fits = |w, h| crate::gpu::synth::check_exemplar_fits(&context, w, h, self.options.k);
         let analysis = match self.source {
-            Source::None => return Err(Error::InvalidParameter("no exemplar given: call exemplar_path, exemplar or analysis".into())),
+            Source::None => {
+                return Err(Error::InvalidParameter(
+                    "no exemplar given: call exemplar_path, exemplar or analysis".into(),
+                ))
+            }
             Source::Analysis(a) => a,
             Source::Exemplar(e) => {
                 fits(e.width, e.height)?;
@@ -203,12 +216,20 @@ impl SessionBuilder {
         // Validate the parameters before uploading.
         crate::passes::SynthPlan::new(&analysis, &self.params)?;
         let synthesizer = GpuSynthesizer::new(&context, Arc::new(analysis))?;
-        Ok(Session { context, synthesizer, params: self.params })
+        Ok(Session {
+            context,
+            synthesizer,
+            params: self.params,
+        })
     }
 }
 
 /// Loads an analysis file or analyses an image, whichever `path` holds.
-pub fn load_source(path: &Path, options: &AnalysisOptions, progress: impl FnMut(Progress)) -> Result<Analysis> {
+pub fn load_source(
+    path: &Path,
+    options: &AnalysisOptions,
+    progress: impl FnMut(Progress),
+) -> Result<Analysis> {
     if is_analysis_file(path)? {
         Analysis::load(path)
     } else {
@@ -244,25 +265,44 @@ impl Texture {
     }
     /// Saves the colours (PNG, or another format by extension), atomically.
     pub fn save(&self, path: impl AsRef<Path>) -> Result<()> {
-        crate::image_io::save_image_atomic(path.as_ref(), self.width(), self.height(), self.channels, &self.rgba8())
+        crate::image_io::save_image_atomic(
+            path.as_ref(),
+            self.width(),
+            self.height(),
+            self.channels,
+            &self.rgba8(),
+        )
     }
     /// Saves the coordinate map as a float EXR (R = x, G = y), atomically.
     pub fn save_coords(&self, path: impl AsRef<Path>) -> Result<()> {
-        crate::image_io::save_coords_exr_atomic(path.as_ref(), self.width(), self.height(), self.coords())
+        crate::image_io::save_coords_exr_atomic(
+            path.as_ref(),
+            self.width(),
+            self.height(),
+            self.coords(),
+        )
     }
 }
 
 /// Whether `path` starts with the analysis-file magic (a missing file is an error).
 pub fn is_analysis_file(path: &Path) -> Result<bool> {
     use std::io::Read;
-    let mut f = std::fs::File::open(path).map_err(|source| Error::Io { path: path.to_path_buf(), source })?;
+    let mut f = std::fs::File::open(path).map_err(|source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
     let mut head = [0u8; 8];
     let mut n = 0;
     while n < head.len() {
         match f.read(&mut head[n..]) {
             Ok(0) => break,
             Ok(k) => n += k,
-            Err(source) => return Err(Error::Io { path: path.to_path_buf(), source }),
+            Err(source) => {
+                return Err(Error::Io {
+                    path: path.to_path_buf(),
+                    source,
+                })
+            }
         }
     }
     Ok(n == head.len() && head == analysis::file::MAGIC)

@@ -10,7 +10,9 @@ use texsyn::SynthParams;
 
 fn ctx() -> &'static GpuContext {
     static CTX: OnceLock<GpuContext> = OnceLock::new();
-    CTX.get_or_init(|| GpuContext::headless().expect("a Vulkan adapter (lavapipe) is required for the tests"))
+    CTX.get_or_init(|| {
+        GpuContext::headless().expect("a Vulkan adapter (lavapipe) is required for the tests")
+    })
 }
 
 /// A crop of the bundled exemplar (small, so the tests stay fast).
@@ -26,7 +28,13 @@ fn exemplar(w: u32, h: u32) -> Exemplar {
             colors.push(full.colors[i]);
         }
     }
-    Exemplar { width: w, height: h, channels: full.channels, values, colors }
+    Exemplar {
+        width: w,
+        height: h,
+        channels: full.channels,
+        values,
+        colors,
+    }
 }
 
 fn analysis(tileable: bool, k: u32) -> Arc<Analysis> {
@@ -37,7 +45,11 @@ fn analysis(tileable: bool, k: u32) -> Arc<Analysis> {
         return a.clone();
     }
     // Non-square, non-power-of-two on purpose.
-    let opts = AnalysisOptions { k, tileable: Some(tileable), ..Default::default() };
+    let opts = AnalysisOptions {
+        k,
+        tileable: Some(tileable),
+        ..Default::default()
+    };
     let a = Arc::new(analyze(&exemplar(40, 33), &opts, |_| {}).unwrap());
     c.push(((tileable, k), a.clone()));
     a
@@ -62,7 +74,11 @@ fn compare_pass_by_pass(a: Arc<Analysis>, params: &SynthParams) {
         let g = gpu.run_prefix(ctx(), params, i + 1).unwrap();
         assert_eq!(g.len(), cpu.len());
         let diff = g.iter().zip(&cpu).filter(|(x, y)| x != y).count();
-        assert_eq!(diff, 0, "dispatch {i} ({:?} at level {}): {diff} coordinates differ", d.kind, d.level);
+        assert_eq!(
+            diff, 0,
+            "dispatch {i} ({:?} at level {}): {diff} coordinates differ",
+            d.kind, d.level
+        );
     }
     let host = gpu.synthesize_to_host(ctx(), params).unwrap();
     let reference = synthesize_cpu(&a, params).unwrap();
@@ -71,42 +87,91 @@ fn compare_pass_by_pass(a: Arc<Analysis>, params: &SynthParams) {
 
 #[test]
 fn non_tileable_k2_matches_cpu_pass_by_pass() {
-    let params = SynthParams { width: 37, height: 29, seed: 11, ..Default::default() };
+    let params = SynthParams {
+        width: 37,
+        height: 29,
+        seed: 11,
+        ..Default::default()
+    };
     compare_pass_by_pass(analysis(false, 2), &params);
 }
 
 #[test]
 fn tileable_k3_window_matches_cpu_pass_by_pass() {
-    let params = SynthParams { width: 30, height: 41, origin: [-17, 23], seed: 5, passes: 1, coherence: 0.5, ..Default::default() };
+    let params = SynthParams {
+        width: 30,
+        height: 41,
+        origin: [-17, 23],
+        seed: 5,
+        passes: 1,
+        coherence: 0.5,
+        ..Default::default()
+    };
     compare_pass_by_pass(analysis(true, 3), &params);
 }
 
 #[test]
 fn k1_three_passes_custom_randomness_match_cpu() {
     let a = analysis(false, 1);
-    let params = SynthParams { width: 64, height: 48, seed: 2, passes: 3, randomness: vec![1.0, 0.7, 0.3, 0.1], ..Default::default() };
+    let params = SynthParams {
+        width: 64,
+        height: 48,
+        seed: 2,
+        passes: 3,
+        randomness: vec![1.0, 0.7, 0.3, 0.1],
+        ..Default::default()
+    };
     let gpu = GpuSynthesizer::new(ctx(), a.clone()).unwrap();
-    assert_eq!(gpu.synthesize_to_host(ctx(), &params).unwrap(), synthesize_cpu(&a, &params).unwrap());
+    assert_eq!(
+        gpu.synthesize_to_host(ctx(), &params).unwrap(),
+        synthesize_cpu(&a, &params).unwrap()
+    );
 }
 
 #[test]
 fn same_seed_same_bytes_other_seed_other_texture() {
     let a = analysis(false, 2);
     let gpu = GpuSynthesizer::new(ctx(), a).unwrap();
-    let p = SynthParams { width: 48, height: 48, seed: 9, ..Default::default() };
+    let p = SynthParams {
+        width: 48,
+        height: 48,
+        seed: 9,
+        ..Default::default()
+    };
     let x = gpu.synthesize_to_host(ctx(), &p).unwrap();
     let y = gpu.synthesize_to_host(ctx(), &p).unwrap();
     assert_eq!(x, y);
-    let z = gpu.synthesize_to_host(ctx(), &SynthParams { seed: 10, ..p.clone() }).unwrap();
-    let same = x.coords.iter().zip(&z.coords).filter(|(a, b)| a == b).count();
-    assert!(same < x.coords.len() / 4, "another seed must give another texture ({same} equal coordinates)");
+    let z = gpu
+        .synthesize_to_host(
+            ctx(),
+            &SynthParams {
+                seed: 10,
+                ..p.clone()
+            },
+        )
+        .unwrap();
+    let same = x
+        .coords
+        .iter()
+        .zip(&z.coords)
+        .filter(|(a, b)| a == b)
+        .count();
+    assert!(
+        same < x.coords.len() / 4,
+        "another seed must give another texture ({same} equal coordinates)"
+    );
 }
 
 #[test]
 fn gpu_texture_matches_host_readback() {
     let a = analysis(true, 2);
     let gpu = GpuSynthesizer::new(ctx(), a).unwrap();
-    let p = SynthParams { width: 33, height: 17, seed: 4, ..Default::default() };
+    let p = SynthParams {
+        width: 33,
+        height: 17,
+        seed: 4,
+        ..Default::default()
+    };
     let host = gpu.synthesize_to_host(ctx(), &p).unwrap();
     let tex = gpu.synthesize(ctx(), &p).unwrap();
     assert_eq!((tex.width, tex.height), (33, 17));
@@ -114,52 +179,125 @@ fn gpu_texture_matches_host_readback() {
     // Encode into a caller's encoder twice; both results must be complete.
     let mut enc = ctx().device.create_command_encoder(&Default::default());
     let t1 = gpu.encode(ctx(), &mut enc, &p).unwrap();
-    let t2 = gpu.encode(ctx(), &mut enc, &SynthParams { seed: 5, ..p.clone() }).unwrap();
+    let t2 = gpu
+        .encode(
+            ctx(),
+            &mut enc,
+            &SynthParams {
+                seed: 5,
+                ..p.clone()
+            },
+        )
+        .unwrap();
     ctx().queue.submit([enc.finish()]);
     ctx().wait_idle().unwrap();
     let read = |t: &wgpu::Texture| -> Vec<[u8; 4]> {
         let row = (t.width() * 4).next_multiple_of(256);
-        let buf = ctx().device.create_buffer(&wgpu::BufferDescriptor { label: None, size: (row * t.height()) as u64, usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST, mapped_at_creation: false });
+        let buf = ctx().device.create_buffer(&wgpu::BufferDescriptor {
+            label: None,
+            size: (row * t.height()) as u64,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
         let mut enc = ctx().device.create_command_encoder(&Default::default());
-        enc.copy_texture_to_buffer(t.as_image_copy(), wgpu::TexelCopyBufferInfo { buffer: &buf, layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(row), rows_per_image: None } }, t.size());
+        enc.copy_texture_to_buffer(
+            t.as_image_copy(),
+            wgpu::TexelCopyBufferInfo {
+                buffer: &buf,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(row),
+                    rows_per_image: None,
+                },
+            },
+            t.size(),
+        );
         ctx().queue.submit([enc.finish()]);
         buf.map_async(wgpu::MapMode::Read, .., |_| {});
         ctx().wait_idle().unwrap();
         let data = buf.get_mapped_range(..).unwrap();
-        (0..t.height()).flat_map(|y| data[(y * row) as usize..(y * row + t.width() * 4) as usize].chunks(4).map(|c| [c[0], c[1], c[2], c[3]]).collect::<Vec<_>>()).collect()
+        (0..t.height())
+            .flat_map(|y| {
+                data[(y * row) as usize..(y * row + t.width() * 4) as usize]
+                    .chunks(4)
+                    .map(|c| [c[0], c[1], c[2], c[3]])
+                    .collect::<Vec<_>>()
+            })
+            .collect()
     };
     assert_eq!(read(&tex.texture), host.colors);
     assert_eq!(read(&t1.texture), host.colors);
-    let other = gpu.synthesize_to_host(ctx(), &SynthParams { seed: 5, ..p }).unwrap();
+    let other = gpu
+        .synthesize_to_host(ctx(), &SynthParams { seed: 5, ..p })
+        .unwrap();
     assert_eq!(read(&t2.texture), other.colors);
 }
 
 #[test]
 fn windows_agree_on_their_overlap() {
     let a = analysis(true, 2);
-    let base = SynthParams { width: 40, height: 40, seed: 3, ..Default::default() };
+    let base = SynthParams {
+        width: 40,
+        height: 40,
+        seed: 3,
+        ..Default::default()
+    };
     let whole = synthesize_cpu(&a, &base).unwrap();
-    let part = synthesize_cpu(&a, &SynthParams { width: 20, height: 25, origin: [13, 9], ..base.clone() }).unwrap();
+    let part = synthesize_cpu(
+        &a,
+        &SynthParams {
+            width: 20,
+            height: 25,
+            origin: [13, 9],
+            ..base.clone()
+        },
+    )
+    .unwrap();
     for y in 0..25 {
         for x in 0..20 {
-            assert_eq!(part.coords[y * 20 + x], whole.coords[(y + 9) * 40 + x + 13], "pixel ({x},{y}) of the window");
+            assert_eq!(
+                part.coords[y * 20 + x],
+                whole.coords[(y + 9) * 40 + x + 13],
+                "pixel ({x},{y}) of the window"
+            );
         }
     }
 }
 
 #[test]
 fn every_distance_mode_matches_cpu() {
-    for (tileable, distance) in [(false, texsyn::DistanceMode::Projected), (true, texsyn::DistanceMode::Full), (true, texsyn::DistanceMode::Projected)] {
+    for (tileable, distance) in [
+        (false, texsyn::DistanceMode::Projected),
+        (true, texsyn::DistanceMode::Full),
+        (true, texsyn::DistanceMode::Projected),
+    ] {
         let a = analysis(tileable, 2);
-        let params = SynthParams { width: 40, height: 36, seed: 8, distance, finest_passes: 2, coherence: 4.0, ..Default::default() };
+        let params = SynthParams {
+            width: 40,
+            height: 36,
+            seed: 8,
+            distance,
+            finest_passes: 2,
+            coherence: 4.0,
+            ..Default::default()
+        };
         let gpu = GpuSynthesizer::new(ctx(), a.clone()).unwrap();
-        assert_eq!(gpu.synthesize_to_host(ctx(), &params).unwrap(), synthesize_cpu(&a, &params).unwrap(), "{distance:?}, tileable {tileable}");
+        assert_eq!(
+            gpu.synthesize_to_host(ctx(), &params).unwrap(),
+            synthesize_cpu(&a, &params).unwrap(),
+            "{distance:?}, tileable {tileable}"
+        );
     }
 }
 
 #[test]
 fn exemplar_too_large_for_the_device_is_a_clear_error() {
-    let e = texsyn::gpu::synth::check_exemplar_fits(ctx(), 16384, 16384, 2).unwrap_err().to_string();
-    assert!(e.contains("larger than this device allows") && e.contains("MiB"), "{e}");
+    let e = texsyn::gpu::synth::check_exemplar_fits(ctx(), 16384, 16384, 2)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("larger than this device allows") && e.contains("MiB"),
+        "{e}"
+    );
     texsyn::gpu::synth::check_exemplar_fits(ctx(), 256, 256, 2).unwrap();
 }

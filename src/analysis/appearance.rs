@@ -24,7 +24,14 @@ fn sample_index(i: usize, count: usize, n: usize) -> usize {
     }
 }
 
-fn gather_neighbourhood(plane: &Plane, x: i32, y: i32, spacing: i32, tileable: bool, out: &mut [f64]) {
+fn gather_neighbourhood(
+    plane: &Plane,
+    x: i32,
+    y: i32,
+    spacing: i32,
+    tileable: bool,
+    out: &mut [f64],
+) {
     let c = plane.channels as usize;
     let mut o = 0;
     for dy in -2i32..=2 {
@@ -41,7 +48,12 @@ fn gather_neighbourhood(plane: &Plane, x: i32, y: i32, spacing: i32, tileable: b
 }
 
 /// Float transformed exemplar of one level and the PCA residual variance.
-pub fn transformed_exemplar(plane: &Plane, spacing: u32, tileable: bool, threads: usize) -> (Vec<[f32; DIM]>, f64) {
+pub fn transformed_exemplar(
+    plane: &Plane,
+    spacing: u32,
+    tileable: bool,
+    threads: usize,
+) -> (Vec<[f32; DIM]>, f64) {
     let (w, h) = (plane.width as usize, plane.height as usize);
     let n = w * h;
     let dim = 25 * plane.channels as usize;
@@ -71,7 +83,11 @@ pub fn transformed_exemplar(plane: &Plane, spacing: u32, tileable: bool, threads
 }
 
 fn read<T: Copy>(v: &[T], w: i32, h: i32, x: i32, y: i32, tileable: bool) -> T {
-    let (x, y) = if tileable { (x.rem_euclid(w), y.rem_euclid(h)) } else { (x.clamp(0, w - 1), y.clamp(0, h - 1)) };
+    let (x, y) = if tileable {
+        (x.rem_euclid(w), y.rem_euclid(h))
+    } else {
+        (x.clamp(0, w - 1), y.clamp(0, h - 1))
+    };
     v[(y * w + x) as usize]
 }
 
@@ -90,7 +106,14 @@ pub struct QuantizedLevel {
 pub const FEATURE_DIM: usize = 2 * DIM;
 
 /// Runtime neighbourhood basis and quantization of one level.
-pub fn quantize_level(et: &[[f32; DIM]], width: u32, height: u32, spacing: u32, tileable: bool, threads: usize) -> QuantizedLevel {
+pub fn quantize_level(
+    et: &[[f32; DIM]],
+    width: u32,
+    height: u32,
+    spacing: u32,
+    tileable: bool,
+    threads: usize,
+) -> QuantizedLevel {
     let (w, h) = (width as i32, height as i32);
     let n = et.len();
     let s = spacing as i32;
@@ -104,12 +127,24 @@ pub fn quantize_level(et: &[[f32; DIM]], width: u32, height: u32, spacing: u32, 
         }
     };
     let count = n.min(MAX_PCA_SAMPLES);
-    let pca = Pca::fit(4 * DIM, count, DIM, threads, |i, out| runtime(sample_index(i, count, n), out));
+    let pca = Pca::fit(4 * DIM, count, DIM, threads, |i, out| {
+        runtime(sample_index(i, count, n), out)
+    });
 
     // Quantize Et with one scale per level (only distances within a level are compared).
-    let max_abs = et.iter().flat_map(|e| e.iter()).fold(0.0f32, |m, v| m.max(v.abs()));
-    let scale = if max_abs > 1e-12 { ET_QMAX / max_abs } else { 0.0 };
-    let et_q: Vec<[i16; DIM]> = et.iter().map(|e| e.map(|v| (v * scale).round() as i16)).collect();
+    let max_abs = et
+        .iter()
+        .flat_map(|e| e.iter())
+        .fold(0.0f32, |m, v| m.max(v.abs()));
+    let scale = if max_abs > 1e-12 {
+        ET_QMAX / max_abs
+    } else {
+        0.0
+    };
+    let et_q: Vec<[i16; DIM]> = et
+        .iter()
+        .map(|e| e.map(|v| (v * scale).round() as i16))
+        .collect();
     let mut proj = [[0i16; 4 * DIM]; DIM];
     for (r, row) in proj.iter_mut().enumerate() {
         if let Some(c) = pca.components.get(r) {
@@ -138,12 +173,18 @@ pub fn quantize_level(et: &[[f32; DIM]], width: u32, height: u32, spacing: u32, 
             .collect::<Vec<_>>()
     })
     .concat();
-    let max_q = q_full.iter().flat_map(|q| q.iter()).fold(0i64, |m, &v| m.max((v as i64).abs()));
+    let max_q = q_full
+        .iter()
+        .flat_map(|q| q.iter())
+        .fold(0i64, |m, &v| m.max((v as i64).abs()));
     let mut shift = 0u32;
     while (max_q >> shift) > QE_MAX as i64 {
         shift += 1;
     }
-    let qe = q_full.iter().map(|q| q.map(|v| (v >> shift) as i16)).collect();
+    let qe = q_full
+        .iter()
+        .map(|q| q.map(|v| (v >> shift) as i16))
+        .collect();
 
     // Features for the similarity sets: Et and the projected neighbourhood (float).
     let features = par_ranges(n, threads, |range| {
@@ -160,5 +201,12 @@ pub fn quantize_level(et: &[[f32; DIM]], width: u32, height: u32, spacing: u32, 
         out
     })
     .concat();
-    QuantizedLevel { et: et_q, proj, qe, shift, runtime_residual: pca.residual_variance(), features }
+    QuantizedLevel {
+        et: et_q,
+        proj,
+        qe,
+        shift,
+        runtime_residual: pca.residual_variance(),
+        features,
+    }
 }

@@ -58,7 +58,12 @@ pub struct AnalysisOptions {
 
 impl Default for AnalysisOptions {
     fn default() -> Self {
-        Self { k: 2, tileable: None, exclusion_radius: 4, threads: 0 }
+        Self {
+            k: 2,
+            tileable: None,
+            exclusion_radius: 4,
+            threads: 0,
+        }
     }
 }
 
@@ -123,7 +128,11 @@ pub fn level_margin(width: u32, height: u32, spacing: u32, tileable: bool) -> u3
 
 pub fn check_exemplar_size(width: u32, height: u32) -> Result<()> {
     if width < MIN_EXEMPLAR_SIZE || height < MIN_EXEMPLAR_SIZE {
-        return Err(Error::ExemplarTooSmall { width, height, min: MIN_EXEMPLAR_SIZE });
+        return Err(Error::ExemplarTooSmall {
+            width,
+            height,
+            min: MIN_EXEMPLAR_SIZE,
+        });
     }
     Ok(())
 }
@@ -131,16 +140,24 @@ pub fn check_exemplar_size(width: u32, height: u32) -> Result<()> {
 /// Runs `f` over `0..n` split into chunks on `threads` workers (0 = all cores) and
 /// returns the chunk results in order. Chunks are handed out dynamically so uneven work
 /// (kd-tree queries) balances; results do not depend on the thread count.
-pub fn par_ranges<T: Send>(n: usize, threads: usize, f: impl Fn(std::ops::Range<usize>) -> T + Sync) -> Vec<T> {
+pub fn par_ranges<T: Send>(
+    n: usize,
+    threads: usize,
+    f: impl Fn(std::ops::Range<usize>) -> T + Sync,
+) -> Vec<T> {
     let threads = if threads == 0 {
-        std::thread::available_parallelism().map(|t| t.get()).unwrap_or(1)
+        std::thread::available_parallelism()
+            .map(|t| t.get())
+            .unwrap_or(1)
     } else {
         threads
     };
     let chunk = n.div_ceil(threads * 8).max(256);
     let chunks = n.div_ceil(chunk).max(1);
     if threads <= 1 || chunks <= 1 {
-        return (0..chunks).map(|c| f(c * chunk..((c + 1) * chunk).min(n))).collect();
+        return (0..chunks)
+            .map(|c| f(c * chunk..((c + 1) * chunk).min(n)))
+            .collect();
     }
     let next = std::sync::atomic::AtomicUsize::new(0);
     let mut results: Vec<Option<T>> = (0..chunks).map(|_| None).collect();
@@ -174,7 +191,12 @@ pub fn par_ranges<T: Send>(n: usize, threads: usize, f: impl Fn(std::ops::Range<
 pub fn detect_tileable(ex: &Exemplar) -> bool {
     let (w, h, c) = (ex.width as usize, ex.height as usize, ex.channels as usize);
     let px = |x: usize, y: usize| &ex.values[(y * w + x) * c..(y * w + x + 1) * c];
-    let d2 = |a: &[f32], b: &[f32]| a.iter().zip(b).map(|(x, y)| ((x - y) * (x - y)) as f64).sum::<f64>();
+    let d2 = |a: &[f32], b: &[f32]| {
+        a.iter()
+            .zip(b)
+            .map(|(x, y)| ((x - y) * (x - y)) as f64)
+            .sum::<f64>()
+    };
     let (mut interior, mut ni) = (0.0, 0usize);
     for y in 0..h {
         for x in 0..w - 1 {
@@ -211,10 +233,17 @@ pub struct Progress {
 }
 
 /// Analyses an exemplar. `progress` is called after each level.
-pub fn analyze(ex: &Exemplar, opts: &AnalysisOptions, mut progress: impl FnMut(Progress)) -> Result<Analysis> {
+pub fn analyze(
+    ex: &Exemplar,
+    opts: &AnalysisOptions,
+    mut progress: impl FnMut(Progress),
+) -> Result<Analysis> {
     check_exemplar_size(ex.width, ex.height)?;
     if opts.k == 0 || opts.k > MAX_K {
-        return Err(Error::InvalidParameter(format!("k = {}: the similarity-set size must be between 1 and {MAX_K}", opts.k)));
+        return Err(Error::InvalidParameter(format!(
+            "k = {}: the similarity-set size must be between 1 and {MAX_K}",
+            opts.k
+        )));
     }
     if ex.width > i16::MAX as u32 || ex.height > i16::MAX as u32 {
         return Err(Error::InvalidParameter(format!(
@@ -225,7 +254,12 @@ pub fn analyze(ex: &Exemplar, opts: &AnalysisOptions, mut progress: impl FnMut(P
     let threads = opts.threads;
     let tileable = opts.tileable.unwrap_or_else(|| detect_tileable(ex));
     let top = level_count(ex.width, ex.height);
-    let plane = stack::Plane { width: ex.width, height: ex.height, channels: ex.channels, data: ex.values.clone() };
+    let plane = stack::Plane {
+        width: ex.width,
+        height: ex.height,
+        channels: ex.channels,
+        data: ex.values.clone(),
+    };
     let stack = stack::gaussian_stack(plane, top, tileable, threads);
     let mut levels = Vec::with_capacity(stack.len());
     for (l, plane) in stack.iter().enumerate() {
@@ -236,7 +270,10 @@ pub fn analyze(ex: &Exemplar, opts: &AnalysisOptions, mut progress: impl FnMut(P
         let t1 = std::time::Instant::now();
         let q = appearance::quantize_level(&et, ex.width, ex.height, spacing, tileable, threads);
         let t2 = std::time::Instant::now();
-        let exclusion = opts.exclusion_radius.max(spacing).min(ex.width.min(ex.height) / 4);
+        let exclusion = opts
+            .exclusion_radius
+            .max(spacing)
+            .min(ex.width.min(ex.height) / 4);
         // Where the 5x5 neighbourhood (4 h_l wide) spans the whole exemplar, the level is
         // a near-constant blur and similarity sets are noise: skip the search there and
         // store zero offsets (those candidates are then the coherent ones). Saves a
@@ -259,7 +296,12 @@ pub fn analyze(ex: &Exemplar, opts: &AnalysisOptions, mut progress: impl FnMut(P
             )
         };
         if std::env::var_os("TEXSYN_PROFILE").is_some() {
-            eprintln!("level {l}: appearance {:?} runtime {:?} kcoherence {:?}", t1 - t0, t2 - t1, t2.elapsed());
+            eprintln!(
+                "level {l}: appearance {:?} runtime {:?} kcoherence {:?}",
+                t1 - t0,
+                t2 - t1,
+                t2.elapsed()
+            );
         }
         levels.push(LevelData {
             spacing,
@@ -272,7 +314,10 @@ pub fn analyze(ex: &Exemplar, opts: &AnalysisOptions, mut progress: impl FnMut(P
             residual_variance: residual as f32,
             runtime_residual_variance: q.runtime_residual as f32,
         });
-        progress(Progress { done: l as u32 + 1, total: top + 1 });
+        progress(Progress {
+            done: l as u32 + 1,
+            total: top + 1,
+        });
     }
     Ok(Analysis {
         width: ex.width,

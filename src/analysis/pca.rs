@@ -86,7 +86,13 @@ impl Pca {
             variances.push(values[i].max(0.0));
         }
         // Pad with zero components when dim < keep (e.g. grey exemplars at tiny sizes).
-        Pca { dim, mean, components, variances, total_variance }
+        Pca {
+            dim,
+            mean,
+            components,
+            variances,
+            total_variance,
+        }
     }
 
     /// Fraction of the total variance not captured by the kept components.
@@ -164,9 +170,17 @@ pub fn symmetric_eigen(matrix: &[f64], n: usize) -> (Vec<f64>, Vec<Vec<f64>>) {
         }
     }
     let mut order: Vec<usize> = (0..n).collect();
-    order.sort_by(|&i, &j| a[j * n + j].partial_cmp(&a[i * n + i]).unwrap_or(std::cmp::Ordering::Equal).then(i.cmp(&j)));
+    order.sort_by(|&i, &j| {
+        a[j * n + j]
+            .partial_cmp(&a[i * n + i])
+            .unwrap_or(std::cmp::Ordering::Equal)
+            .then(i.cmp(&j))
+    });
     let values = order.iter().map(|&i| a[i * n + i]).collect();
-    let vectors = order.iter().map(|&i| (0..n).map(|k| v[k * n + i]).collect()).collect();
+    let vectors = order
+        .iter()
+        .map(|&i| (0..n).map(|k| v[k * n + i]).collect())
+        .collect();
     (values, vectors)
 }
 

@@ -32,7 +32,11 @@ impl Plane {
 const BINOMIAL: [f32; 5] = [1.0 / 16.0, 4.0 / 16.0, 6.0 / 16.0, 4.0 / 16.0, 1.0 / 16.0];
 
 fn blur_axis(src: &Plane, step: i32, horizontal: bool, tileable: bool, threads: usize) -> Plane {
-    let (w, h, c) = (src.width as usize, src.height as usize, src.channels as usize);
+    let (w, h, c) = (
+        src.width as usize,
+        src.height as usize,
+        src.channels as usize,
+    );
     let rows = par_ranges(h, threads, |range| {
         let mut out = vec![0.0f32; range.len() * w * c];
         for (ri, y) in range.enumerate() {
@@ -40,7 +44,11 @@ fn blur_axis(src: &Plane, step: i32, horizontal: bool, tileable: bool, threads: 
                 let o = &mut out[(ri * w + x) * c..(ri * w + x + 1) * c];
                 for (t, &k) in BINOMIAL.iter().enumerate() {
                     let d = (t as i32 - 2) * step;
-                    let (sx, sy) = if horizontal { (x as i32 + d, y as i32) } else { (x as i32, y as i32 + d) };
+                    let (sx, sy) = if horizontal {
+                        (x as i32 + d, y as i32)
+                    } else {
+                        (x as i32, y as i32 + d)
+                    };
                     for (oc, v) in o.iter_mut().zip(src.at(sx, sy, tileable)) {
                         *oc += k * v;
                     }
@@ -49,7 +57,12 @@ fn blur_axis(src: &Plane, step: i32, horizontal: bool, tileable: bool, threads: 
         }
         out
     });
-    Plane { width: src.width, height: src.height, channels: src.channels, data: rows.concat() }
+    Plane {
+        width: src.width,
+        height: src.height,
+        channels: src.channels,
+        data: rows.concat(),
+    }
 }
 
 /// The Gaussian stack, index = level (`stack[L]` is the exemplar).
@@ -73,14 +86,24 @@ mod tests {
     #[test]
     fn stack_preserves_mean_and_smooths() {
         let (w, h) = (32u32, 32u32);
-        let data: Vec<f32> = (0..w * h).map(|i| ((i * 2654435761u32) >> 24) as f32 / 255.0).collect();
+        let data: Vec<f32> = (0..w * h)
+            .map(|i| ((i * 2654435761u32) >> 24) as f32 / 255.0)
+            .collect();
         let mean = data.iter().sum::<f32>() / data.len() as f32;
-        let plane = Plane { width: w, height: h, channels: 1, data };
+        let plane = Plane {
+            width: w,
+            height: h,
+            channels: 1,
+            data,
+        };
         let stack = gaussian_stack(plane, 5, true, 2);
         assert_eq!(stack.len(), 6);
         let var = |p: &Plane| {
             let m = p.data.iter().sum::<f32>() / p.data.len() as f32;
-            (m, p.data.iter().map(|v| (v - m) * (v - m)).sum::<f32>() / p.data.len() as f32)
+            (
+                m,
+                p.data.iter().map(|v| (v - m) * (v - m)).sum::<f32>() / p.data.len() as f32,
+            )
         };
         let mut last_var = f32::INFINITY;
         for p in stack.iter().rev() {

@@ -377,6 +377,16 @@ pub fn check_output_size(
     Ok(())
 }
 
+/// `--distance projected|full|mixed`.
+pub fn parse_distance(s: &str) -> Result<texsyn::DistanceMode, String> {
+    match s.trim().to_ascii_lowercase().as_str() {
+        "projected" => Ok(texsyn::DistanceMode::Projected),
+        "full" => Ok(texsyn::DistanceMode::Full),
+        "mixed" => Ok(texsyn::DistanceMode::Mixed),
+        _ => Err(format!("\"{s}\": the distance is projected, full or mixed")),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -426,15 +436,5 @@ mod tests {
         }
         assert!(parse_coherence("4.5").is_err());
         assert_eq!(parse_coherence("0.25"), Ok(0.25));
-    }
-}
-
-/// `--distance projected|full|mixed`.
-pub fn parse_distance(s: &str) -> Result<texsyn::DistanceMode, String> {
-    match s.trim().to_ascii_lowercase().as_str() {
-        "projected" => Ok(texsyn::DistanceMode::Projected),
-        "full" => Ok(texsyn::DistanceMode::Full),
-        "mixed" => Ok(texsyn::DistanceMode::Mixed),
-        _ => Err(format!("\"{s}\": the distance is projected, full or mixed")),
     }
 }

@@ -160,7 +160,12 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
     let (analysis, from_file, analysis_time) = match source {
         Source::Analysis(a) => (a, true, None),
         Source::Image(ex) => {
-            texsyn::gpu::synth::check_exemplar_fits(&ctx, ex.width, ex.height, args.k.unwrap_or(AnalysisOptions::default().k))?;
+            texsyn::gpu::synth::check_exemplar_fits(
+                &ctx,
+                ex.width,
+                ex.height,
+                args.k.unwrap_or(AnalysisOptions::default().k),
+            )?;
             let t = Instant::now();
             let options = AnalysisOptions {
                 k: args.k.unwrap_or(AnalysisOptions::default().k),

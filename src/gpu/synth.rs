@@ -65,8 +65,20 @@ fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
     }
 }
 
-fn too_large(what: &'static str, width: u32, height: u32, limit: String, hint: &'static str) -> Error {
-    Error::TooLarge { what, width, height, limit, hint }
+fn too_large(
+    what: &'static str,
+    width: u32,
+    height: u32,
+    limit: String,
+    hint: &'static str,
+) -> Error {
+    Error::TooLarge {
+        what,
+        width,
+        height,
+        limit,
+        hint,
+    }
 }
 
 /// Bytes of a buffer holding `data`, never empty (WebGPU rejects 0-sized bindings).
@@ -88,7 +100,8 @@ impl GpuSynthesizer {
         ctx.scoped(|| {
             let mut et = Vec::with_capacity((px * levels) as usize);
             let mut qe = Vec::with_capacity((px * levels) as usize);
-            let mut offsets = Vec::with_capacity((px * levels) as usize * a.k.saturating_sub(1) as usize);
+            let mut offsets =
+                Vec::with_capacity((px * levels) as usize * a.k.saturating_sub(1) as usize);
             let mut proj: Vec<i32> = Vec::with_capacity(a.levels.len() * 256);
             for l in &a.levels {
                 et.extend_from_slice(&l.et);
@@ -127,7 +140,9 @@ impl GpuSynthesizer {
                 ty: wgpu::BindingType::Buffer {
                     ty: wgpu::BufferBindingType::Uniform,
                     has_dynamic_offset: true,
-                    min_binding_size: wgpu::BufferSize::new(std::mem::size_of::<PassParams>() as u64),
+                    min_binding_size: wgpu::BufferSize::new(
+                        std::mem::size_of::<PassParams>() as u64
+                    ),
                 },
                 count: None,
             }];
@@ -155,14 +170,20 @@ impl GpuSynthesizer {
                 },
                 count: None,
             });
-            let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("texsyn passes"), entries: &entries });
+            let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some("texsyn passes"),
+                entries: &entries,
+            });
             let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
                 label: Some("texsyn passes"),
                 bind_group_layouts: &[Some(&layout)],
                 immediate_size: 0,
             });
             let pipeline = |s: &ShaderSource| {
-                let desc = wgpu::ShaderModuleDescriptor { label: Some(s.file), source: wgpu::ShaderSource::Wgsl(s.source.into()) };
+                let desc = wgpu::ShaderModuleDescriptor {
+                    label: Some(s.file),
+                    source: wgpu::ShaderSource::Wgsl(s.source.into()),
+                };
                 let module = device.create_shader_module(desc);
                 device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                     label: Some(s.name),
@@ -200,45 +221,82 @@ impl GpuSynthesizer {
         let p = &plan.params;
         let max_dim = limits.max_texture_dimension_2d;
         if p.width > max_dim || p.height > max_dim {
-            return Err(too_large("output", p.width, p.height, format!("at most {max_dim} pixels a side"), "synthesize it in windows (SynthParams::origin) and assemble them"));
+            return Err(too_large(
+                "output",
+                p.width,
+                p.height,
+                format!("at most {max_dim} pixels a side"),
+                "synthesize it in windows (SynthParams::origin) and assemble them",
+            ));
         }
         let bytes = plan.coord_count * 8;
-        let max = (limits.max_storage_buffer_binding_size as u64).min(limits.max_buffer_size);
+        let max = limits
+            .max_storage_buffer_binding_size
+            .min(limits.max_buffer_size);
         if bytes > max {
             return Err(too_large(
                 "output",
                 p.width,
                 p.height,
-                format!("its coordinate pyramid needs {} MiB in one buffer, the device allows {} MiB", bytes >> 20, max >> 20),
+                format!(
+                    "its coordinate pyramid needs {} MiB in one buffer, the device allows {} MiB",
+                    bytes >> 20,
+                    max >> 20
+                ),
                 "synthesize it in windows (SynthParams::origin) and assemble them",
             ));
         }
         let groups = limits.max_compute_workgroups_per_dimension as u64 * 8;
         let fin = plan.levels.last().unwrap();
         if fin.size[0] as u64 > groups || fin.size[1] as u64 > groups {
-            return Err(too_large("output", p.width, p.height, format!("at most {groups} pixels a side per dispatch"), "synthesize it in windows"));
+            return Err(too_large(
+                "output",
+                p.width,
+                p.height,
+                format!("at most {groups} pixels a side per dispatch"),
+                "synthesize it in windows",
+            ));
         }
         Ok(())
     }
 
-    fn scratch_for(&self, ctx: &GpuContext, plan: &SynthPlan) -> std::sync::MutexGuard<'_, Option<Scratch>> {
+    fn scratch_for(
+        &self,
+        ctx: &GpuContext,
+        plan: &SynthPlan,
+    ) -> std::sync::MutexGuard<'_, Option<Scratch>> {
         let mut guard = self.scratch.lock().unwrap_or_else(|e| e.into_inner());
-        let fits = guard.as_ref().is_some_and(|s| s.coord_count >= plan.coord_count);
+        let fits = guard
+            .as_ref()
+            .is_some_and(|s| s.coord_count >= plan.coord_count);
         if !fits {
             let coords = ctx.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("texsyn coords"),
                 size: (plan.coord_count * 8).max(16),
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+                usage: wgpu::BufferUsages::STORAGE
+                    | wgpu::BufferUsages::COPY_SRC
+                    | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             });
-            *guard = Some(Scratch { coord_count: plan.coord_count, coords });
+            *guard = Some(Scratch {
+                coord_count: plan.coord_count,
+                coords,
+            });
         }
         guard
     }
 
     /// Records the first `count` dispatches of the synthesis into `encoder`, writing
     /// colours to `target`. Returns the plan and the coordinate buffer.
-    fn record(&self, ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder, plan: &SynthPlan, schedule: &[Dispatch], target: &wgpu::TextureView, clear: bool) -> wgpu::Buffer {
+    fn record(
+        &self,
+        ctx: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        plan: &SynthPlan,
+        schedule: &[Dispatch],
+        target: &wgpu::TextureView,
+        clear: bool,
+    ) -> wgpu::Buffer {
         let guard = self.scratch_for(ctx, plan);
         let scratch = guard.as_ref().unwrap();
         if clear {
@@ -247,15 +305,18 @@ impl GpuSynthesizer {
         let mut bytes = vec![0u8; schedule.len().max(1) * PARAMS_STRIDE as usize];
         for (i, d) in schedule.iter().enumerate() {
             let o = i * PARAMS_STRIDE as usize;
-            bytes[o..o + std::mem::size_of::<PassParams>()].copy_from_slice(bytemuck::bytes_of(&d.params));
+            bytes[o..o + std::mem::size_of::<PassParams>()]
+                .copy_from_slice(bytemuck::bytes_of(&d.params));
         }
         // Parameters live in their own buffer per call: a later call must not overwrite
         // them before this one's commands have run.
-        let params = ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("texsyn params"),
-            contents: &bytes,
-            usage: wgpu::BufferUsages::UNIFORM,
-        });
+        let params = ctx
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("texsyn params"),
+                contents: &bytes,
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
         let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("texsyn passes"),
             layout: &self.layout,
@@ -268,20 +329,45 @@ impl GpuSynthesizer {
                         size: wgpu::BufferSize::new(std::mem::size_of::<PassParams>() as u64),
                     }),
                 },
-                wgpu::BindGroupEntry { binding: 1, resource: scratch.coords.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 2, resource: self.et.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 3, resource: self.qe.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 4, resource: self.offsets.as_entire_binding() },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: scratch.coords.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: self.et.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: self.qe.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 4,
+                    resource: self.offsets.as_entire_binding(),
+                },
                 wgpu::BindGroupEntry {
                     binding: 5,
-                    resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding { buffer: &self.proj, offset: 0, size: wgpu::BufferSize::new(PROJ_BYTES) }),
+                    resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                        buffer: &self.proj,
+                        offset: 0,
+                        size: wgpu::BufferSize::new(PROJ_BYTES),
+                    }),
                 },
-                wgpu::BindGroupEntry { binding: 6, resource: self.colors.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 7, resource: wgpu::BindingResource::TextureView(target) },
+                wgpu::BindGroupEntry {
+                    binding: 6,
+                    resource: self.colors.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 7,
+                    resource: wgpu::BindingResource::TextureView(target),
+                },
             ],
         });
         {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("texsyn synthesis"), timestamp_writes: None });
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("texsyn synthesis"),
+                timestamp_writes: None,
+            });
             for (i, d) in schedule.iter().enumerate() {
                 let pipeline = match d.kind {
                     PassKind::Upsample => &self.upsample,
@@ -294,7 +380,14 @@ impl GpuSynthesizer {
                     continue;
                 }
                 pass.set_pipeline(pipeline);
-                pass.set_bind_group(0, &bind_group, &[(i as u64 * PARAMS_STRIDE) as u32, d.level as u32 * PROJ_BYTES as u32]);
+                pass.set_bind_group(
+                    0,
+                    &bind_group,
+                    &[
+                        (i as u64 * PARAMS_STRIDE) as u32,
+                        d.level as u32 * PROJ_BYTES as u32,
+                    ],
+                );
                 pass.dispatch_workgroups(tx.div_ceil(8), ty.div_ceil(8), 1);
             }
         }
@@ -304,19 +397,30 @@ impl GpuSynthesizer {
     fn output_texture(&self, ctx: &GpuContext, width: u32, height: u32) -> wgpu::Texture {
         ctx.device.create_texture(&wgpu::TextureDescriptor {
             label: Some("texsyn output"),
-            size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+            size: wgpu::Extent3d {
+                width,
+                height,
+                depth_or_array_layers: 1,
+            },
             mip_level_count: 1,
             sample_count: 1,
             dimension: wgpu::TextureDimension::D2,
             format: OUTPUT_FORMAT,
-            usage: wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_SRC,
+            usage: wgpu::TextureUsages::STORAGE_BINDING
+                | wgpu::TextureUsages::TEXTURE_BINDING
+                | wgpu::TextureUsages::COPY_SRC,
             view_formats: &[],
         })
     }
 
     /// Records a whole synthesis into the caller's encoder; the returned texture holds
     /// the colours once the caller submits the encoder. Nothing is read back.
-    pub fn encode(&self, ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder, params: &SynthParams) -> Result<GpuSynthesis> {
+    pub fn encode(
+        &self,
+        ctx: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        params: &SynthParams,
+    ) -> Result<GpuSynthesis> {
         let plan = SynthPlan::new(&self.analysis, params)?;
         self.check_output(ctx, &plan)?;
         let schedule = plan.schedule(&self.analysis);
@@ -324,7 +428,11 @@ impl GpuSynthesizer {
             let texture = self.output_texture(ctx, params.width, params.height);
             let view = texture.create_view(&Default::default());
             self.record(ctx, encoder, &plan, &schedule, &view, false);
-            GpuSynthesis { texture, width: params.width, height: params.height }
+            GpuSynthesis {
+                texture,
+                width: params.width,
+                height: params.height,
+            }
         })
     }
 
@@ -346,7 +454,8 @@ impl GpuSynthesizer {
         let texture = ctx.scoped(|| self.output_texture(ctx, w, h))?;
         let view = texture.create_view(&Default::default());
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
-        let coords = ctx.scoped(|| self.record(ctx, &mut encoder, &plan, &schedule, &view, false))?;
+        let coords =
+            ctx.scoped(|| self.record(ctx, &mut encoder, &plan, &schedule, &view, false))?;
         let fin = plan.levels.last().unwrap();
         let fin_bytes = fin.size[0] as u64 * fin.size[1] as u64 * 8;
         let row = (w as u64 * 4).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT as u64);
@@ -358,14 +467,33 @@ impl GpuSynthesizer {
                 mapped_at_creation: false,
             });
             encoder.copy_texture_to_buffer(
-                wgpu::TexelCopyTextureInfo { texture: &texture, mip_level: 0, origin: wgpu::Origin3d::ZERO, aspect: wgpu::TextureAspect::All },
+                wgpu::TexelCopyTextureInfo {
+                    texture: &texture,
+                    mip_level: 0,
+                    origin: wgpu::Origin3d::ZERO,
+                    aspect: wgpu::TextureAspect::All,
+                },
                 wgpu::TexelCopyBufferInfo {
                     buffer: &rb,
-                    layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(row as u32), rows_per_image: Some(h) },
+                    layout: wgpu::TexelCopyBufferLayout {
+                        offset: 0,
+                        bytes_per_row: Some(row as u32),
+                        rows_per_image: Some(h),
+                    },
                 },
-                wgpu::Extent3d { width: w, height: h, depth_or_array_layers: 1 },
+                wgpu::Extent3d {
+                    width: w,
+                    height: h,
+                    depth_or_array_layers: 1,
+                },
             );
-            encoder.copy_buffer_to_buffer(&coords, fin.coord_base as u64 * 8, &rb, row * h as u64, fin_bytes);
+            encoder.copy_buffer_to_buffer(
+                &coords,
+                fin.coord_base as u64 * 8,
+                &rb,
+                row * h as u64,
+                fin_bytes,
+            );
             ctx.queue.submit([encoder.finish()]);
             rb
         })?;
@@ -378,15 +506,26 @@ impl GpuSynthesizer {
         let level_coords: &[[i32; 2]] = bytemuck::cast_slice(&bytes[(row * h as u64) as usize..]);
         let mut window = Vec::with_capacity((w * h) as usize);
         for y in 0..h {
-            let start = ((y + plan.window_offset[1]) * fin.size[0] + plan.window_offset[0]) as usize;
+            let start =
+                ((y + plan.window_offset[1]) * fin.size[0] + plan.window_offset[0]) as usize;
             window.extend_from_slice(&level_coords[start..start + w as usize]);
         }
-        Ok(Synthesis { width: w, height: h, coords: window, colors })
+        Ok(Synthesis {
+            width: w,
+            height: h,
+            coords: window,
+            colors,
+        })
     }
 
     /// Test hook: runs only the first `count` dispatches of the schedule and returns the
     /// whole coordinate array (every level), to compare with the CPU mirror pass by pass.
-    pub fn run_prefix(&self, ctx: &GpuContext, params: &SynthParams, count: usize) -> Result<Vec<[i32; 2]>> {
+    pub fn run_prefix(
+        &self,
+        ctx: &GpuContext,
+        params: &SynthParams,
+        count: usize,
+    ) -> Result<Vec<[i32; 2]>> {
         let plan = SynthPlan::new(&self.analysis, params)?;
         self.check_output(ctx, &plan)?;
         let schedule = plan.schedule(&self.analysis);
@@ -421,14 +560,20 @@ pub fn check_exemplar_fits(ctx: &GpuContext, width: u32, height: u32, k: u32) ->
     let levels = crate::analysis::level_count(width, height) as u64 + 1;
     let table_bytes = px * levels * 16;
     let offset_bytes = px * levels * 4 * (k.saturating_sub(1) as u64);
-    let max = (limits.max_storage_buffer_binding_size as u64).min(limits.max_buffer_size);
+    let max = limits
+        .max_storage_buffer_binding_size
+        .min(limits.max_buffer_size);
     let biggest = table_bytes.max(offset_bytes);
     if biggest > max {
         return Err(too_large(
             "exemplar",
             width,
             height,
-            format!("its tables need {} MiB in one buffer, the device allows {} MiB", biggest >> 20, max >> 20),
+            format!(
+                "its tables need {} MiB in one buffer, the device allows {} MiB",
+                biggest >> 20,
+                max >> 20
+            ),
             "use a smaller exemplar (downsample it) or a smaller k",
         ));
     }
@@ -436,7 +581,10 @@ pub fn check_exemplar_fits(ctx: &GpuContext, width: u32, height: u32, k: u32) ->
 }
 
 fn wait(ctx: &GpuContext) -> Result<()> {
-    ctx.device.poll(wgpu::PollType::wait_indefinitely()).map(|_| ()).map_err(|e| Error::Gpu(format!("waiting for the GPU: {e}")))
+    ctx.device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .map(|_| ())
+        .map_err(|e| Error::Gpu(format!("waiting for the GPU: {e}")))
 }
 
 fn read_buffer(ctx: &GpuContext, buffer: &wgpu::Buffer) -> Result<Vec<u8>> {
@@ -448,7 +596,10 @@ fn read_buffer(ctx: &GpuContext, buffer: &wgpu::Buffer) -> Result<Vec<u8>> {
     rx.recv()
         .map_err(|_| Error::Gpu("buffer mapping was cancelled".into()))?
         .map_err(|e| Error::Gpu(format!("reading back results: {e}")))?;
-    let data = buffer.get_mapped_range(..).map_err(|e| Error::Gpu(format!("reading back results: {e}")))?.to_vec();
+    let data = buffer
+        .get_mapped_range(..)
+        .map_err(|e| Error::Gpu(format!("reading back results: {e}")))?
+        .to_vec();
     buffer.unmap();
     Ok(data)
 }

@@ -136,7 +136,10 @@ pub fn read_coord(c: [i32; 2], p: &PassParams) -> [i32; 2] {
     if p.tileable != 0 {
         [wrap_near(c[0], p.ex_size[0]), wrap_near(c[1], p.ex_size[1])]
     } else {
-        [c[0].clamp(0, p.ex_size[0] - 1), c[1].clamp(0, p.ex_size[1] - 1)]
+        [
+            c[0].clamp(0, p.ex_size[0] - 1),
+            c[1].clamp(0, p.ex_size[1] - 1),
+        ]
     }
 }
 

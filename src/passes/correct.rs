@@ -39,14 +39,22 @@ fn ex_index(c: [i32; 2], p: &PassParams) -> usize {
 }
 
 /// Per diagonal, the sum of the three predictions of `Et` at `q + D` (`3 N_S(q;D)`).
-pub fn prediction_sums(p: &PassParams, t: &LevelTables, coords: &[[i32; 2]], q: [i32; 2]) -> [[i32; DIM]; 4] {
+pub fn prediction_sums(
+    p: &PassParams,
+    t: &LevelTables,
+    coords: &[[i32; 2]],
+    q: [i32; 2],
+) -> [[i32; DIM]; 4] {
     let base = p.coord_base as usize;
     let h = p.step;
     let mut out = [[0i32; DIM]; 4];
     for (j, d) in DIAGONALS.iter().enumerate() {
         for dp in [*d, [d[0], 0], [0, d[1]]] {
             let s = coords[base + region_index([q[0] + dp[0], q[1] + dp[1]], p)];
-            let u = read_coord([s[0] + h[0] * (d[0] - dp[0]), s[1] + h[1] * (d[1] - dp[1])], p);
+            let u = read_coord(
+                [s[0] + h[0] * (d[0] - dp[0]), s[1] + h[1] * (d[1] - dp[1])],
+                p,
+            );
             let e = t.et[ex_index(u, p)];
             for c in 0..DIM {
                 out[j][c] += e[c] as i32;
@@ -96,7 +104,12 @@ pub fn full_distance(p: &PassParams, t: &LevelTables, sums: &[[i32; DIM]; 4], c:
 }
 
 /// New coordinate of the pixel at region position `q`.
-pub fn correct_pixel(p: &PassParams, t: &LevelTables, coords: &[[i32; 2]], q: [i32; 2]) -> [i32; 2] {
+pub fn correct_pixel(
+    p: &PassParams,
+    t: &LevelTables,
+    coords: &[[i32; 2]],
+    q: [i32; 2],
+) -> [i32; 2] {
     let base = p.coord_base as usize;
     let h = p.step;
     let sums = prediction_sums(p, t, coords, q);
@@ -151,7 +164,10 @@ pub fn correct_pixel(p: &PassParams, t: &LevelTables, coords: &[[i32; 2]], q: [i
 
 /// One subpass over the level's region.
 pub fn run(p: &PassParams, t: &LevelTables, coords: &mut [[i32; 2]]) {
-    let start = [(p.parity[0] - p.origin[0]) & 1, (p.parity[1] - p.origin[1]) & 1];
+    let start = [
+        (p.parity[0] - p.origin[0]) & 1,
+        (p.parity[1] - p.origin[1]) & 1,
+    ];
     let mut y = start[1];
     while y < p.size[1] {
         let mut x = start[0];

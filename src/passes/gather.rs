@@ -4,7 +4,11 @@
 use super::common::PassParams;
 
 /// Returns the window's coordinates and RGBA8 colours, row-major.
-pub fn run(p: &PassParams, coords: &[[i32; 2]], colors: &[[u8; 4]]) -> (Vec<[i32; 2]>, Vec<[u8; 4]>) {
+pub fn run(
+    p: &PassParams,
+    coords: &[[i32; 2]],
+    colors: &[[u8; 4]],
+) -> (Vec<[i32; 2]>, Vec<[u8; 4]>) {
     let n = (p.window_size[0] * p.window_size[1]) as usize;
     let mut out_coords = Vec::with_capacity(n);
     let mut out_colors = Vec::with_capacity(n);

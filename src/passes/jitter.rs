@@ -9,7 +9,10 @@ use super::common::{fit_coord, hash_pixel, PassParams};
 pub fn jitter_offset(abs: [i32; 2], level: u32, seed: u32, amp: i32) -> [i32; 2] {
     let h = hash_pixel(abs, level, seed);
     let s = [(h[0] & 0xfff) as i32 - 2048, (h[1] & 0xfff) as i32 - 2048];
-    [(amp * s[0] + (1 << 14)) >> 15, (amp * s[1] + (1 << 14)) >> 15]
+    [
+        (amp * s[0] + (1 << 14)) >> 15,
+        (amp * s[1] + (1 << 14)) >> 15,
+    ]
 }
 
 pub fn run(p: &PassParams, coords: &mut [[i32; 2]]) {
@@ -19,7 +22,12 @@ pub fn run(p: &PassParams, coords: &mut [[i32; 2]]) {
     for y in 0..p.size[1] {
         for x in 0..p.size[0] {
             let i = p.coord_base as usize + (y * p.size[0] + x) as usize;
-            let o = jitter_offset([p.origin[0] + x, p.origin[1] + y], p.level, p.seed, p.jitter_amp);
+            let o = jitter_offset(
+                [p.origin[0] + x, p.origin[1] + y],
+                p.level,
+                p.seed,
+                p.jitter_amp,
+            );
             coords[i] = fit_coord([coords[i][0] + o[0], coords[i][1] + o[1]], p);
         }
     }

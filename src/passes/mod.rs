@@ -27,12 +27,21 @@ pub struct Synthesis {
 /// Tables of one level, as slices of the analysis.
 pub fn level_tables(analysis: &Analysis, level: usize) -> correct::LevelTables<'_> {
     let l = &analysis.levels[level];
-    correct::LevelTables { et: &l.et, qe: &l.qe, offsets: &l.offsets, proj: &l.proj }
+    correct::LevelTables {
+        et: &l.et,
+        qe: &l.qe,
+        offsets: &l.offsets,
+        proj: &l.proj,
+    }
 }
 
 /// Runs dispatches of a schedule on the CPU over the concatenated coordinate array
 /// (every level's region). Returns the gather result if a gather dispatch ran.
-pub fn run_cpu(analysis: &Analysis, schedule: &[Dispatch], coords: &mut [[i32; 2]]) -> Option<Synthesis> {
+pub fn run_cpu(
+    analysis: &Analysis,
+    schedule: &[Dispatch],
+    coords: &mut [[i32; 2]],
+) -> Option<Synthesis> {
     let mut out = None;
     for d in schedule {
         match d.kind {
@@ -41,7 +50,12 @@ pub fn run_cpu(analysis: &Analysis, schedule: &[Dispatch], coords: &mut [[i32; 2
             PassKind::Correct => correct::run(&d.params, &level_tables(analysis, d.level), coords),
             PassKind::Gather => {
                 let (c, col) = gather::run(&d.params, coords, &analysis.colors);
-                out = Some(Synthesis { width: d.params.window_size[0] as u32, height: d.params.window_size[1] as u32, coords: c, colors: col });
+                out = Some(Synthesis {
+                    width: d.params.window_size[0] as u32,
+                    height: d.params.window_size[1] as u32,
+                    coords: c,
+                    colors: col,
+                });
             }
         }
     }

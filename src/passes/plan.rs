@@ -157,7 +157,10 @@ impl SynthPlan {
             let (rlo, rhi) = if level == 0 {
                 (lo, hi)
             } else {
-                ([lo[0] - margin, lo[1] - margin], [hi[0] + margin, hi[1] + margin])
+                (
+                    [lo[0] - margin, lo[1] - margin],
+                    [hi[0] + margin, hi[1] + margin],
+                )
             };
             rev.push((level, rlo, rhi));
             lo = [floor_div2(rlo[0]), floor_div2(rlo[1])];
@@ -195,7 +198,12 @@ impl SynthPlan {
             (params.origin[0] - fin.origin[0]) as u32,
             (params.origin[1] - fin.origin[1]) as u32,
         ];
-        Ok(Self { levels, params: params.clone(), window_offset, coord_count: base })
+        Ok(Self {
+            levels,
+            params: params.clone(),
+            window_offset,
+            coord_count: base,
+        })
     }
 
     /// Uniform parameters of any pass at `level` (parity and correction-specific
@@ -203,8 +211,12 @@ impl SynthPlan {
     pub fn pass_params(&self, analysis: &Analysis, level: usize) -> PassParams {
         let lp = &self.levels[level];
         let ld = &analysis.levels[level];
-        let parent = if level > 0 { &self.levels[level - 1] } else { lp };
-        let px = (analysis.width * analysis.height) as u32;
+        let parent = if level > 0 {
+            &self.levels[level - 1]
+        } else {
+            lp
+        };
+        let px = analysis.width * analysis.height;
         let km1 = analysis.k.saturating_sub(1);
         PassParams {
             ex_size: [analysis.width as i32, analysis.height as i32],
@@ -212,11 +224,18 @@ impl SynthPlan {
             size: [lp.size[0] as i32, lp.size[1] as i32],
             parent_origin: parent.origin,
             // Level 0 has no parent: upsample starts it from (0, 0).
-            parent_size: if level > 0 { [parent.size[0] as i32, parent.size[1] as i32] } else { [0, 0] },
+            parent_size: if level > 0 {
+                [parent.size[0] as i32, parent.size[1] as i32]
+            } else {
+                [0, 0]
+            },
             parity: [0, 0],
             spacing: lp.spacing as i32,
             step: if analysis.tileable {
-                [(lp.spacing % analysis.width) as i32, (lp.spacing % analysis.height) as i32]
+                [
+                    (lp.spacing % analysis.width) as i32,
+                    (lp.spacing % analysis.height) as i32,
+                ]
             } else {
                 [lp.spacing as i32; 2]
             },
@@ -264,7 +283,10 @@ impl Dispatch {
         let p = &self.params;
         match self.kind {
             PassKind::Upsample | PassKind::Jitter => [p.size[0] as u32, p.size[1] as u32],
-            PassKind::Correct => [(p.size[0] as u32).div_ceil(2), (p.size[1] as u32).div_ceil(2)],
+            PassKind::Correct => [
+                (p.size[0] as u32).div_ceil(2),
+                (p.size[1] as u32).div_ceil(2),
+            ],
             PassKind::Gather => [p.window_size[0] as u32, p.window_size[1] as u32],
         }
     }
@@ -279,15 +301,27 @@ impl SynthPlan {
         let mut out = Vec::new();
         for level in 0..self.levels.len() {
             let params = self.pass_params(analysis, level);
-            out.push(Dispatch { kind: PassKind::Upsample, level, params });
+            out.push(Dispatch {
+                kind: PassKind::Upsample,
+                level,
+                params,
+            });
             if level == 0 {
                 continue;
             }
             if params.jitter_amp != 0 {
-                out.push(Dispatch { kind: PassKind::Jitter, level, params });
+                out.push(Dispatch {
+                    kind: PassKind::Jitter,
+                    level,
+                    params,
+                });
             }
             let finest = level + 1 == self.levels.len();
-            let passes = if finest { self.params.finest_passes } else { self.params.passes };
+            let passes = if finest {
+                self.params.finest_passes
+            } else {
+                self.params.passes
+            };
             let full = match self.params.distance {
                 DistanceMode::Projected => false,
                 DistanceMode::Full => true,
@@ -295,13 +329,25 @@ impl SynthPlan {
             };
             for _ in 0..passes {
                 for parity in SUBPASS_ORDER {
-                    let params = PassParams { parity, full_distance: full as u32, ..params };
-                    out.push(Dispatch { kind: PassKind::Correct, level, params });
+                    let params = PassParams {
+                        parity,
+                        full_distance: full as u32,
+                        ..params
+                    };
+                    out.push(Dispatch {
+                        kind: PassKind::Correct,
+                        level,
+                        params,
+                    });
                 }
             }
         }
         let last = self.levels.len() - 1;
-        out.push(Dispatch { kind: PassKind::Gather, level: last, params: self.pass_params(analysis, last) });
+        out.push(Dispatch {
+            kind: PassKind::Gather,
+            level: last,
+            params: self.pass_params(analysis, last),
+        });
         out
     }
 }

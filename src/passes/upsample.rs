@@ -12,7 +12,13 @@ pub fn upsample_pixel(p: &PassParams, coords: &[[i32; 2]], abs: [i32; 2]) -> [i3
     let px = ((abs[0] >> 1) - p.parent_origin[0]).clamp(0, p.parent_size[0] - 1);
     let py = ((abs[1] >> 1) - p.parent_origin[1]).clamp(0, p.parent_size[1] - 1);
     let parent = coords[p.parent_coord_base as usize + (py * p.parent_size[0] + px) as usize];
-    fit_coord([parent[0] + p.spacing * (abs[0] & 1), parent[1] + p.spacing * (abs[1] & 1)], p)
+    fit_coord(
+        [
+            parent[0] + p.spacing * (abs[0] & 1),
+            parent[1] + p.spacing * (abs[1] & 1),
+        ],
+        p,
+    )
 }
 
 pub fn run(p: &PassParams, coords: &mut [[i32; 2]]) {
