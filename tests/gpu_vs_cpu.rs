@@ -301,3 +301,27 @@ fn exemplar_too_large_for_the_device_is_a_clear_error() {
     );
     texsyn::gpu::synth::check_exemplar_fits(ctx(), 256, 256, 2).unwrap();
 }
+
+#[test]
+fn windows_far_out_are_refused_not_overflowed() {
+    let a = analysis(true, 2);
+    let far = SynthParams {
+        width: 16,
+        height: 16,
+        origin: [i32::MAX - 8, 0],
+        ..Default::default()
+    };
+    let e = synthesize_cpu(&a, &far).unwrap_err().to_string();
+    assert!(e.contains("supported texture area"), "{e}");
+    let ok = SynthParams {
+        width: 16,
+        height: 16,
+        origin: [-(1 << 27), 1 << 27],
+        ..Default::default()
+    };
+    let gpu = GpuSynthesizer::new(ctx(), a.clone()).unwrap();
+    assert_eq!(
+        gpu.synthesize_to_host(ctx(), &ok).unwrap(),
+        synthesize_cpu(&a, &ok).unwrap()
+    );
+}

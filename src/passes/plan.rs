@@ -140,6 +140,21 @@ impl SynthPlan {
                 )));
             }
         }
+        // Absolute positions stay far from i32 overflow (the plan adds margins and the
+        // coarser levels' regions; the hash takes them as 32-bit integers).
+        const MAX_ABS: i64 = 1 << 28;
+        let ends = [
+            params.origin[0] as i64,
+            params.origin[1] as i64,
+            params.origin[0] as i64 + params.width as i64,
+            params.origin[1] as i64 + params.height as i64,
+        ];
+        if ends.iter().any(|v| v.abs() > MAX_ABS) {
+            return Err(Error::InvalidParameter(format!(
+                "window {},{} of {}x{} leaves the supported texture area (+-{MAX_ABS} pixels)",
+                params.origin[0], params.origin[1], params.width, params.height
+            )));
+        }
         let n_levels = analysis.levels.len() as u32;
         let last = n_levels - 1;
         let margin = 4 * params.passes.max(params.finest_passes) as i32;
