@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 use clap::Args;
 
 use texsyn::analysis::{Analysis, AnalysisOptions, Exemplar, MAX_K};
-use texsyn::gpu::synth::{GpuSynthesis, GpuSynthesizer};
+use texsyn::gpu::synth::GpuSynthesizer;
 use texsyn::gpu::GpuContext;
 use texsyn::passes::SynthParams;
 
@@ -236,7 +236,7 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
         ctx.take_uncaptured_errors()?;
         let synth = t.elapsed();
         let t = Instant::now();
-        let rgba8 = read_texture(&ctx, &gpu)?;
+        let rgba8 = gpu.read_rgba8(&ctx)?;
         let readback = t.elapsed();
         let t = Instant::now();
         texsyn::image_io::save_image_atomic(&args.output, width, height, channels, &rgba8)?;
@@ -315,64 +315,6 @@ enum Timings {
         synth_readback: Duration,
         write: Duration,
     },
-}
-
-/// Copies a synthesized texture back to the host as tightly packed RGBA8.
-fn read_texture(ctx: &GpuContext, s: &GpuSynthesis) -> texsyn::Result<Vec<u8>> {
-    let (w, h) = (s.width, s.height);
-    let row = (w as u64 * 4).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT as u64);
-    let buffer = ctx.scoped(|| {
-        let buffer = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("texsyn cli readback"),
-            size: row * h as u64,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let mut encoder = ctx.device.create_command_encoder(&Default::default());
-        encoder.copy_texture_to_buffer(
-            wgpu::TexelCopyTextureInfo {
-                texture: &s.texture,
-                mip_level: 0,
-                origin: wgpu::Origin3d::ZERO,
-                aspect: wgpu::TextureAspect::All,
-            },
-            wgpu::TexelCopyBufferInfo {
-                buffer: &buffer,
-                layout: wgpu::TexelCopyBufferLayout {
-                    offset: 0,
-                    bytes_per_row: Some(row as u32),
-                    rows_per_image: Some(h),
-                },
-            },
-            wgpu::Extent3d {
-                width: w,
-                height: h,
-                depth_or_array_layers: 1,
-            },
-        );
-        ctx.queue.submit([encoder.finish()]);
-        buffer
-    })?;
-    let (tx, rx) = std::sync::mpsc::channel();
-    buffer.map_async(wgpu::MapMode::Read, .., move |r| {
-        let _ = tx.send(r);
-    });
-    ctx.wait_idle()?;
-    let gpu_err =
-        |e: &dyn std::fmt::Display| texsyn::Error::Gpu(format!("reading back the texture: {e}"));
-    rx.recv()
-        .map_err(|e| gpu_err(&e))?
-        .map_err(|e| gpu_err(&e))?;
-    let mut out = Vec::with_capacity(w as usize * h as usize * 4);
-    {
-        let data = buffer.get_mapped_range(..).map_err(|e| gpu_err(&e))?;
-        for y in 0..h as usize {
-            let start = y * row as usize;
-            out.extend_from_slice(&data[start..start + w as usize * 4]);
-        }
-    }
-    buffer.unmap();
-    Ok(out)
 }
 
 /// Rejects an output extension the library cannot write, before any work (the library

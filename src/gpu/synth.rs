@@ -29,6 +29,46 @@ pub struct GpuSynthesis {
     pub height: u32,
 }
 
+impl GpuSynthesis {
+    /// Copies the texture back to the host as tightly packed RGBA8 rows (waits for the
+    /// GPU). For when the pixels are needed after all; `synthesize_to_host` does the
+    /// synthesis and this read-back in one submission.
+    pub fn read_rgba8(&self, ctx: &GpuContext) -> Result<Vec<u8>> {
+        let (w, h) = (self.width, self.height);
+        let row = (w as u64 * 4).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT as u64);
+        let buffer = ctx.scoped(|| {
+            let buffer = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("texsyn texture readback"),
+                size: row * h as u64,
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            let mut encoder = ctx.device.create_command_encoder(&Default::default());
+            encoder.copy_texture_to_buffer(
+                self.texture.as_image_copy(),
+                wgpu::TexelCopyBufferInfo {
+                    buffer: &buffer,
+                    layout: wgpu::TexelCopyBufferLayout {
+                        offset: 0,
+                        bytes_per_row: Some(row as u32),
+                        rows_per_image: Some(h),
+                    },
+                },
+                self.texture.size(),
+            );
+            ctx.queue.submit([encoder.finish()]);
+            buffer
+        })?;
+        let data = read_buffer(ctx, &buffer)?;
+        let mut out = Vec::with_capacity(w as usize * h as usize * 4);
+        for y in 0..h as usize {
+            let start = y * row as usize;
+            out.extend_from_slice(&data[start..start + w as usize * 4]);
+        }
+        Ok(out)
+    }
+}
+
 /// The coordinate pyramid, kept between calls of the same or smaller size. Sharing it
 /// is safe even for several syntheses recorded into one encoder: they run in order.
 struct Scratch {
