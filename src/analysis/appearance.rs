@@ -4,6 +4,10 @@
 //! four diagonal neighbours (32D), is reduced by a second PCA to the basis `P_l` (8x32).
 //! Finally both are quantized to integers: the GPU compares integer sums, so GPU and CPU
 //! results are identical regardless of floating-point contraction or summation order.
+//!
+//! The float work runs in f32 (the results are quantized to 12 bits) with per-level
+//! tables of the wrapped or clamped neighbour coordinates; only the PCA covariance is
+//! accumulated in f64 (see [`Pca::fit`]).
 
 use super::pca::Pca;
 use super::stack::Plane;
@@ -11,10 +15,10 @@ use super::{par_ranges, DIAGONALS, DIM, ET_QMAX, PROJ_QMAX, QE_MAX};
 
 /// At most this many pixels feed a covariance estimate (strided sample); beyond it the
 /// estimate no longer changes visibly and the analysis stays fast on large exemplars.
-const MAX_PCA_SAMPLES: usize = 65536;
+const MAX_PCA_SAMPLES: usize = 16384;
 
 /// Binomial weights of the 5x5 neighbourhood, centre weight 1.
-const NEIGHBOURHOOD_WEIGHTS: [f64; 5] = [1.0 / 6.0, 4.0 / 6.0, 1.0, 4.0 / 6.0, 1.0 / 6.0];
+const NEIGHBOURHOOD_WEIGHTS: [f32; 5] = [1.0 / 6.0, 4.0 / 6.0, 1.0, 4.0 / 6.0, 1.0 / 6.0];
 
 fn sample_index(i: usize, count: usize, n: usize) -> usize {
     if count >= n {
@@ -24,28 +28,28 @@ fn sample_index(i: usize, count: usize, n: usize) -> usize {
     }
 }
 
-fn gather_neighbourhood(
-    plane: &Plane,
-    x: i32,
-    y: i32,
-    spacing: i32,
-    tileable: bool,
-    out: &mut [f64],
-) {
-    let c = plane.channels as usize;
-    let mut o = 0;
-    for dy in -2i32..=2 {
-        let wy = NEIGHBOURHOOD_WEIGHTS[(dy + 2) as usize];
-        for dx in -2i32..=2 {
-            let w = wy * NEIGHBOURHOOD_WEIGHTS[(dx + 2) as usize];
-            let px = plane.at(x + dx * spacing, y + dy * spacing, tileable);
-            for ch in 0..c {
-                out[o] = px[ch] as f64 * w;
-                o += 1;
-            }
-        }
+/// Coordinate `i + d` wrapped into `0..n` (tileable) or clamped to it.
+#[inline]
+fn wrap(i: i64, n: usize, tileable: bool) -> usize {
+    if tileable {
+        i.rem_euclid(n as i64) as usize
+    } else {
+        i.clamp(0, n as i64 - 1) as usize
     }
 }
+
+/// `table[t * n + i]` = wrapped/clamped `i + taps[t] * spacing`, for each tap `t`.
+fn tap_table(n: usize, spacing: u32, taps: &[i32], tileable: bool) -> Vec<u32> {
+    let mut t = Vec::with_capacity(taps.len() * n);
+    for &d in taps {
+        for i in 0..n {
+            t.push(wrap(i as i64 + d as i64 * spacing as i64, n, tileable) as u32);
+        }
+    }
+    t
+}
+
+const TAPS5: [i32; 5] = [-2, -1, 0, 1, 2];
 
 /// Float transformed exemplar of one level and the PCA residual variance.
 pub fn transformed_exemplar(
@@ -54,41 +58,91 @@ pub fn transformed_exemplar(
     tileable: bool,
     threads: usize,
 ) -> (Vec<[f32; DIM]>, f64) {
-    let (w, h) = (plane.width as usize, plane.height as usize);
+    let (w, h, c) = (
+        plane.width as usize,
+        plane.height as usize,
+        plane.channels as usize,
+    );
     let n = w * h;
-    let dim = 25 * plane.channels as usize;
-    let s = spacing as i32;
+    let dim = 25 * c;
+    let xs = tap_table(w, spacing, &TAPS5, tileable);
+    let ys = tap_table(h, spacing, &TAPS5, tileable);
+    // Per-channel mean, subtracted before the covariance accumulation (accuracy).
+    let mut mean = vec![0.0f64; c];
+    for px in plane.data.chunks_exact(c) {
+        for (m, &v) in mean.iter_mut().zip(px) {
+            *m += v as f64;
+        }
+    }
+    let mean: Vec<f32> = mean.iter().map(|m| (m / n as f64) as f32).collect();
+    let data = &plane.data;
+    let gather = |x: usize, y: usize, out: &mut [f32]| {
+        let mut o = 0;
+        for dy in 0..5 {
+            let row = ys[dy * h + y] as usize * w;
+            let wy = NEIGHBOURHOOD_WEIGHTS[dy];
+            for dx in 0..5 {
+                let wt = wy * NEIGHBOURHOOD_WEIGHTS[dx];
+                let i = (row + xs[dx * w + x] as usize) * c;
+                for ch in 0..c {
+                    out[o] = (data[i + ch] - mean[ch]) * wt;
+                    o += 1;
+                }
+            }
+        }
+    };
     let count = n.min(MAX_PCA_SAMPLES);
     let pca = Pca::fit(dim, count, DIM, threads, |i, out| {
         let p = sample_index(i, count, n);
-        gather_neighbourhood(plane, (p % w) as i32, (p / w) as i32, s, tileable, out);
+        gather(p % w, p / w, out);
     });
-    let et = par_ranges(n, threads, |range| {
-        let mut v = vec![0.0f64; dim];
-        let mut proj = [0.0f64; DIM];
-        range
-            .map(|p| {
-                gather_neighbourhood(plane, (p % w) as i32, (p / w) as i32, s, tileable, &mut v);
-                pca.project(&v, &mut proj[..pca.components.len()]);
-                let mut e = [0.0f32; DIM];
-                for (a, b) in e.iter_mut().zip(proj) {
-                    *a = b as f32;
+    // Et_k(p) = sum_j comp_k[j] * (v_j(p) - mean_j): a 5x5 filter bank on the
+    // channel-centred plane, with the neighbourhood weights folded into the taps.
+    let mut coef = vec![[0.0f32; DIM]; dim];
+    let mut bias = [0.0f32; DIM];
+    for (k, comp) in pca.components.iter().enumerate() {
+        let mut b = 0.0f64;
+        for (j, cf) in coef.iter_mut().enumerate() {
+            let (dy, dx) = (j / c / 5, j / c % 5);
+            cf[k] =
+                (comp[j] * (NEIGHBOURHOOD_WEIGHTS[dy] * NEIGHBOURHOOD_WEIGHTS[dx]) as f64) as f32;
+            b -= comp[j] * pca.mean[j];
+        }
+        bias[k] = b as f32;
+    }
+    // Centred plane, so that the filter input matches the PCA samples.
+    let centred: Vec<f32> = data
+        .iter()
+        .enumerate()
+        .map(|(i, v)| v - mean[i % c])
+        .collect();
+    let et = par_ranges(h, threads, |rows| {
+        let mut out = Vec::with_capacity(rows.len() * w);
+        for y in rows {
+            for x in 0..w {
+                let mut e = bias;
+                let mut j = 0;
+                for dy in 0..5 {
+                    let row = ys[dy * h + y] as usize * w;
+                    for dx in 0..5 {
+                        let i = (row + xs[dx * w + x] as usize) * c;
+                        for ch in 0..c {
+                            let v = centred[i + ch];
+                            let cf = &coef[j];
+                            for k in 0..DIM {
+                                e[k] += v * cf[k];
+                            }
+                            j += 1;
+                        }
+                    }
                 }
-                e
-            })
-            .collect::<Vec<_>>()
+                out.push(e);
+            }
+        }
+        out
     })
     .concat();
     (et, pca.residual_variance())
-}
-
-fn read<T: Copy>(v: &[T], w: i32, h: i32, x: i32, y: i32, tileable: bool) -> T {
-    let (x, y) = if tileable {
-        (x.rem_euclid(w), y.rem_euclid(h))
-    } else {
-        (x.clamp(0, w - 1), y.clamp(0, h - 1))
-    };
-    v[(y * w + x) as usize]
 }
 
 /// Quantized level data computed from the float transformed exemplar.
@@ -114,19 +168,25 @@ pub fn quantize_level(
     tileable: bool,
     threads: usize,
 ) -> QuantizedLevel {
-    let (w, h) = (width as i32, height as i32);
+    let (w, h) = (width as usize, height as usize);
     let n = et.len();
-    let s = spacing as i32;
-    let runtime = |p: usize, out: &mut [f64]| {
-        let (x, y) = ((p % width as usize) as i32, (p / width as usize) as i32);
-        for (j, d) in DIAGONALS.iter().enumerate() {
-            let e = read(et, w, h, x + s * d[0], y + s * d[1], tileable);
-            for c in 0..DIM {
-                out[j * DIM + c] = e[c] as f64;
-            }
+    // Diagonal neighbour coordinates: tap 0 is -spacing, tap 1 is +spacing.
+    let xs = tap_table(w, spacing, &[-1, 1], tileable);
+    let ys = tap_table(h, spacing, &[-1, 1], tileable);
+    let diag = |p: usize, j: usize| {
+        let (x, y) = (p % w, p / w);
+        let d = DIAGONALS[j];
+        let tx = (d[0] > 0) as usize;
+        let ty = (d[1] > 0) as usize;
+        ys[ty * h + y] as usize * w + xs[tx * w + x] as usize
+    };
+    let runtime = |p: usize, out: &mut [f32]| {
+        for j in 0..4 {
+            out[j * DIM..(j + 1) * DIM].copy_from_slice(&et[diag(p, j)]);
         }
     };
     let count = n.min(MAX_PCA_SAMPLES);
+    // Et is (close to) zero-mean: it is a PCA projection of (nearly) all pixels.
     let pca = Pca::fit(4 * DIM, count, DIM, threads, |i, out| {
         runtime(sample_index(i, count, n), out)
     });
@@ -153,26 +213,56 @@ pub fn quantize_level(
             }
         }
     }
+    // Transposed projection (column-major) for the per-pixel products below.
+    let mut proj_t = [[0i32; DIM]; 4 * DIM];
+    let mut pf_t = [[0.0f32; DIM]; 4 * DIM];
+    for r in 0..DIM {
+        for col in 0..4 * DIM {
+            proj_t[col][r] = 3 * proj[r][col] as i32;
+            if let Some(c) = pca.components.get(r) {
+                // The 32D neighbourhood spans four pixels: halve it so both halves weigh alike.
+                pf_t[col][r] = (c[col] * 0.5) as f32;
+            }
+        }
+    }
+    let mut pf_bias = [0.0f32; DIM];
+    for (r, c) in pca.components.iter().enumerate() {
+        pf_bias[r] = (-0.5 * c.iter().zip(&pca.mean).map(|(a, b)| a * b).sum::<f64>()) as f32;
+    }
     // Exemplar side of the distance: 3 * P * N_E(u), exactly as the GPU forms
-    // P * (sum of three predictions) for synthesized pixels.
-    let q_full: Vec<[i32; DIM]> = par_ranges(n, threads, |range| {
-        range
-            .map(|p| {
-                let (x, y) = ((p % width as usize) as i32, (p / width as usize) as i32);
-                let mut q = [0i32; DIM];
-                for (j, d) in DIAGONALS.iter().enumerate() {
-                    let e = read(&et_q, w, h, x + s * d[0], y + s * d[1], tileable);
-                    for (r, qr) in q.iter_mut().enumerate() {
-                        for c in 0..DIM {
-                            *qr += 3 * proj[r][j * DIM + c] as i32 * e[c] as i32;
-                        }
+    // P * (sum of three predictions) for synthesized pixels. Also the float features
+    // for the similarity sets: Et and the projected neighbourhood.
+    let parts = par_ranges(n, threads, |range| {
+        let mut qs = Vec::with_capacity(range.len());
+        let mut feats = Vec::with_capacity(range.len() * FEATURE_DIM);
+        for p in range {
+            let mut q = [0i32; DIM];
+            let mut f = pf_bias;
+            for j in 0..4 {
+                let u = diag(p, j);
+                let e = &et_q[u];
+                let ef = &et[u];
+                for c in 0..DIM {
+                    let (pq, pf) = (&proj_t[j * DIM + c], &pf_t[j * DIM + c]);
+                    let (ev, efv) = (e[c] as i32, ef[c]);
+                    for r in 0..DIM {
+                        q[r] += pq[r] * ev;
+                        f[r] += pf[r] * efv;
                     }
                 }
-                q
-            })
-            .collect::<Vec<_>>()
-    })
-    .concat();
+            }
+            qs.push(q);
+            feats.extend_from_slice(&et[p]);
+            feats.extend_from_slice(&f);
+        }
+        (qs, feats)
+    });
+    let mut q_full = Vec::with_capacity(n);
+    let mut features = Vec::with_capacity(n * FEATURE_DIM);
+    for (q, f) in parts {
+        q_full.extend(q);
+        features.extend(f);
+    }
     let max_q = q_full
         .iter()
         .flat_map(|q| q.iter())
@@ -185,22 +275,6 @@ pub fn quantize_level(
         .iter()
         .map(|q| q.map(|v| (v >> shift) as i16))
         .collect();
-
-    // Features for the similarity sets: Et and the projected neighbourhood (float).
-    let features = par_ranges(n, threads, |range| {
-        let mut v = vec![0.0f64; 4 * DIM];
-        let mut np = [0.0f64; DIM];
-        let mut out = Vec::with_capacity(range.len() * FEATURE_DIM);
-        for p in range {
-            runtime(p, &mut v);
-            pca.project(&v, &mut np[..pca.components.len()]);
-            out.extend(et[p].iter().copied());
-            // The 32D neighbourhood spans four pixels: halve it so both halves weigh alike.
-            out.extend(np.iter().map(|v| (*v * 0.5) as f32));
-        }
-        out
-    })
-    .concat();
     QuantizedLevel {
         et: et_q,
         proj,
@@ -208,5 +282,72 @@ pub fn quantize_level(
         shift,
         runtime_residual: pca.residual_variance(),
         features,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::{analyze, AnalysisOptions, Exemplar};
+
+    fn exemplar(w: u32, h: u32, channels: u32) -> Exemplar {
+        let mut values = Vec::new();
+        let mut colors = Vec::new();
+        for y in 0..h {
+            for x in 0..w {
+                let mut px = [0u8; 4];
+                for c in 0..channels {
+                    let v = (((x * 7 + y * 3 + c * 11) % 17) as f32 / 16.0 * 0.6
+                        + (((x * 2654435761u32) ^ (y * 40503) ^ c).wrapping_mul(2246822519) >> 24)
+                            as f32
+                            / 255.0
+                            * 0.4)
+                        .min(1.0);
+                    values.push(v);
+                    px[c as usize] = (v * 255.0) as u8;
+                }
+                if channels == 1 {
+                    px = [px[0], px[0], px[0], 255];
+                }
+                px[3] = 255;
+                colors.push(px);
+            }
+        }
+        Exemplar {
+            width: w,
+            height: h,
+            channels,
+            values,
+            colors,
+        }
+    }
+
+    #[test]
+    fn analysis_does_not_depend_on_the_thread_count() {
+        for (channels, tileable, k) in [(3, Some(true), 2), (1, Some(false), 3), (3, None, 4)] {
+            let ex = exemplar(45, 38, channels);
+            let run = |threads| {
+                let opts = AnalysisOptions {
+                    k,
+                    tileable,
+                    threads,
+                    ..Default::default()
+                };
+                analyze(&ex, &opts, |_| {}).unwrap()
+            };
+            let a = run(1);
+            assert_eq!(a, run(2));
+            assert_eq!(a, run(7));
+            // Levels whose neighbourhood spans the exemplar are not searched.
+            for l in &a.levels {
+                assert_eq!(l.offsets.len(), 45 * 38 * (k as usize - 1));
+                if 4 * l.spacing >= 38 {
+                    assert!(l.offsets.iter().all(|o| *o == [0, 0]));
+                } else {
+                    assert!(
+                        l.offsets.iter().filter(|o| **o == [0, 0]).count() < l.offsets.len() / 10
+                    );
+                }
+            }
+        }
     }
 }

@@ -139,7 +139,8 @@ pub fn check_exemplar_size(width: u32, height: u32) -> Result<()> {
 
 /// Runs `f` over `0..n` split into chunks on `threads` workers (0 = all cores) and
 /// returns the chunk results in order. Chunks are handed out dynamically so uneven work
-/// (kd-tree queries) balances; results do not depend on the thread count.
+/// balances. The chunks depend on `n` only (at most 64 of them), so neither the results
+/// nor the order in which partial results are combined depend on the thread count.
 pub fn par_ranges<T: Send>(
     n: usize,
     threads: usize,
@@ -152,7 +153,7 @@ pub fn par_ranges<T: Send>(
     } else {
         threads
     };
-    let chunk = n.div_ceil(threads * 8).max(256);
+    let chunk = n.div_ceil(64).max(1);
     let chunks = n.div_ceil(chunk).max(1);
     if threads <= 1 || chunks <= 1 {
         return (0..chunks)
@@ -260,8 +261,13 @@ pub fn analyze(
         channels: ex.channels,
         data: ex.values.clone(),
     };
+    let profile = std::env::var_os("TEXSYN_PROFILE").is_some();
+    let t_stack = std::time::Instant::now();
     let stack = stack::gaussian_stack(plane, top, tileable, threads);
-    let mut levels = Vec::with_capacity(stack.len());
+    if profile {
+        eprintln!("stack {:?}", t_stack.elapsed());
+    }
+    let mut levels: Vec<LevelData> = Vec::with_capacity(stack.len());
     for (l, plane) in stack.iter().enumerate() {
         let spacing = 1u32 << (top - l as u32);
         let margin = level_margin(ex.width, ex.height, spacing, tileable);
@@ -278,9 +284,8 @@ pub fn analyze(
         // a near-constant blur and similarity sets are noise: skip the search there and
         // store zero offsets (those candidates are then the coherent ones). Saves a
         // quarter of the analysis time of a 128x128 exemplar.
-        let offsets = if 4 * spacing >= ex.width.min(ex.height) {
-            vec![[0i16; 2]; (ex.width * ex.height * opts.k.saturating_sub(1)) as usize]
-        } else {
+        let searched = |spacing: u32| 4 * spacing < ex.width.min(ex.height);
+        let offsets = if searched(spacing) {
             kcoherence::similarity_offsets(
                 &kcoherence::SimilarityQuery {
                     features: &q.features,
@@ -291,11 +296,19 @@ pub fn analyze(
                     margin,
                     exclusion_radius: exclusion,
                     k: opts.k,
+                    spacing,
+                    // The coarser level's sets seed the search.
+                    init: levels
+                        .last()
+                        .filter(|l| searched(l.spacing))
+                        .map(|l| &l.offsets[..]),
                 },
                 threads,
             )
+        } else {
+            vec![[0i16; 2]; (ex.width * ex.height * opts.k.saturating_sub(1)) as usize]
         };
-        if std::env::var_os("TEXSYN_PROFILE").is_some() {
+        if profile {
             eprintln!(
                 "level {l}: appearance {:?} runtime {:?} kcoherence {:?}",
                 t1 - t0,

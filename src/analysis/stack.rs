@@ -37,19 +37,41 @@ fn blur_axis(src: &Plane, step: i32, horizontal: bool, tileable: bool, threads: 
         src.height as usize,
         src.channels as usize,
     );
+    // Source coordinate of each tap along the blurred axis (wrapped or clamped).
+    let len = if horizontal { w } else { h };
+    let taps: Vec<[u32; 5]> = (0..len as i64)
+        .map(|i| {
+            std::array::from_fn(|t| {
+                let j = i + (t as i64 - 2) * step as i64;
+                if tileable {
+                    j.rem_euclid(len as i64) as u32
+                } else {
+                    j.clamp(0, len as i64 - 1) as u32
+                }
+            })
+        })
+        .collect();
+    let data = &src.data;
     let rows = par_ranges(h, threads, |range| {
         let mut out = vec![0.0f32; range.len() * w * c];
         for (ri, y) in range.enumerate() {
-            for x in 0..w {
-                let o = &mut out[(ri * w + x) * c..(ri * w + x + 1) * c];
+            let orow = &mut out[ri * w * c..(ri + 1) * w * c];
+            if horizontal {
+                let srow = &data[y * w * c..(y + 1) * w * c];
+                for x in 0..w {
+                    let o = &mut orow[x * c..(x + 1) * c];
+                    for (t, &k) in BINOMIAL.iter().enumerate() {
+                        let sx = taps[x][t] as usize * c;
+                        for (oc, v) in o.iter_mut().zip(&srow[sx..sx + c]) {
+                            *oc += k * v;
+                        }
+                    }
+                }
+            } else {
                 for (t, &k) in BINOMIAL.iter().enumerate() {
-                    let d = (t as i32 - 2) * step;
-                    let (sx, sy) = if horizontal {
-                        (x as i32 + d, y as i32)
-                    } else {
-                        (x as i32, y as i32 + d)
-                    };
-                    for (oc, v) in o.iter_mut().zip(src.at(sx, sy, tileable)) {
+                    let sy = taps[y][t] as usize;
+                    let srow = &data[sy * w * c..(sy + 1) * w * c];
+                    for (oc, v) in orow.iter_mut().zip(srow) {
                         *oc += k * v;
                     }
                 }
