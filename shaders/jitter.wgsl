@@ -12,5 +12,5 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let s = vec2<i32>(h & vec2<u32>(0xfffu)) - vec2<i32>(2048);
     let o = (params.jitter_amp * s + vec2<i32>(1 << 14u)) >> vec2<u32>(15u);
     let i = params.coord_base + u32(q.y * params.size.x + q.x);
-    coords[i] = fit_coord(coords[i] + o);
+    coords[i] = fit_coord(coords[i] + (o << vec2<u32>(params.coord_frac)));
 }

@@ -186,8 +186,13 @@ fn push_rgbf(values: &mut Vec<f32>, colors: &mut Vec<[u8; 4]>, c: [f32; 3]) {
     colors.push([q[0], q[1], q[2], 255]);
 }
 
-/// Opens and decodes an image, deciding the format by content. Missing / unreadable
+/// Opens and decodes an image, deciding the format by content (any format and pixel
+/// type; for auxiliary inputs such as fields and masks). Missing / unreadable
 /// file: `Error::Io`; anything the decoder rejects: `Error::BadImage`.
+pub fn open_image(path: &Path) -> Result<DynamicImage> {
+    decode_image(path)
+}
+
 fn decode_image(path: &Path) -> Result<DynamicImage> {
     let io_err = |source| Error::Io {
         path: path.to_path_buf(),
@@ -487,10 +492,20 @@ pub fn save_coords_exr_atomic(
     coords: &[[i32; 2]],
 ) -> Result<()> {
     check_buffer(width, height, 1, coords.len(), "the coordinate map")?;
-    let data: Vec<f32> = coords
-        .iter()
-        .flat_map(|c| [c[0] as f32, c[1] as f32, 0.0])
-        .collect();
+    let f: Vec<[f32; 2]> = coords.iter().map(|c| [c[0] as f32, c[1] as f32]).collect();
+    save_coords_exr_f32_atomic(path, width, height, &f)
+}
+
+/// [`save_coords_exr_atomic`] for continuous coordinates (anisometric synthesis), in
+/// exemplar pixels.
+pub fn save_coords_exr_f32_atomic(
+    path: &Path,
+    width: u32,
+    height: u32,
+    coords: &[[f32; 2]],
+) -> Result<()> {
+    check_buffer(width, height, 1, coords.len(), "the coordinate map")?;
+    let data: Vec<f32> = coords.iter().flat_map(|c| [c[0], c[1], 0.0]).collect();
     let img = image::Rgb32FImage::from_raw(width, height, data).unwrap();
     let mut buf = Cursor::new(Vec::new());
     DynamicImage::ImageRgb32F(img)
@@ -503,6 +518,37 @@ pub fn save_coords_exr_atomic(
             reason: e.to_string(),
         })
     })
+}
+
+/// Reads a coordinate map as floats (exemplar pixels, not rounded): `(width, height,
+/// coords)`. Same checks as [`load_coords_exr`].
+pub fn load_coords_exr_f32(path: &Path) -> Result<(u32, u32, Vec<[f32; 2]>)> {
+    let img = decode_image(path)?;
+    let bad = |reason: String| Error::BadImage {
+        path: path.to_path_buf(),
+        reason,
+    };
+    let (width, height) = (img.width(), img.height());
+    let pixels: Vec<[f32; 2]> = match &img {
+        DynamicImage::ImageRgb32F(b) => b.pixels().map(|p| [p.0[0], p.0[1]]).collect(),
+        DynamicImage::ImageRgba32F(b) => b.pixels().map(|p| [p.0[0], p.0[1]]).collect(),
+        other => {
+            return Err(bad(format!(
+                "not a float coordinate map (pixel type {:?}); write one with --coords-out",
+                other.color()
+            )))
+        }
+    };
+    if let Some(i) = pixels
+        .iter()
+        .position(|c| !c.iter().all(|v| v.is_finite() && v.abs() <= 1e9))
+    {
+        return Err(bad(format!(
+            "pixel {i} holds {:?}, not a valid exemplar coordinate",
+            pixels[i]
+        )));
+    }
+    Ok((width, height, pixels))
 }
 
 /// Reads a coordinate map written by [`save_coords_exr_atomic`] (any float RGB/RGBA image

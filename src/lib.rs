@@ -2,10 +2,11 @@
 //!
 //! Layout: [`analysis`] (host preprocessing of the exemplar) | [`passes`] (the synthesis
 //! plan and CPU mirrors of the WGSL passes) | [`gpu`] (device, pipelines, synthesis on
-//! the GPU) | [`quality`] (figures for evaluation) | [`image_io`] (files).
+//! the GPU) | [`field`] (Jacobian fields for anisometric synthesis) | [`quality`] (figures for evaluation) | [`image_io`] (files).
 
 pub mod analysis;
 pub mod error;
+pub mod field;
 pub mod gpu;
 pub mod image_io;
 pub mod passes;

@@ -168,6 +168,12 @@ impl SessionBuilder {
         self
     }
 
+    /// Anisometric synthesis along a Jacobian field (see [`crate::field`]).
+    pub fn field(mut self, field: crate::field::Field) -> Self {
+        self.params.field = Some(field);
+        self
+    }
+
     /// Run on the caller's device instead of creating a headless one.
     pub fn context(mut self, context: GpuContext) -> Self {
         self.context = Some(context);
@@ -255,11 +261,15 @@ impl Texture {
     pub fn height(&self) -> u32 {
         self.synthesis.height
     }
+    /// Fractional bits of [`Texture::coords`]: 0 (isometric) or 8 (anisometric).
+    pub fn coord_frac(&self) -> u32 {
+        self.synthesis.coord_frac
+    }
     /// RGBA8 bytes, row-major.
     pub fn rgba8(&self) -> Vec<u8> {
         self.synthesis.colors.iter().flatten().copied().collect()
     }
-    /// Exemplar coordinates per pixel.
+    /// Exemplar coordinates per pixel, in units of `2^-coord_frac()` exemplar pixels.
     pub fn coords(&self) -> &[[i32; 2]] {
         &self.synthesis.coords
     }
@@ -273,13 +283,14 @@ impl Texture {
             &self.rgba8(),
         )
     }
-    /// Saves the coordinate map as a float EXR (R = x, G = y), atomically.
+    /// Saves the coordinate map as a float EXR (R = x, G = y, exemplar pixels),
+    /// atomically.
     pub fn save_coords(&self, path: impl AsRef<Path>) -> Result<()> {
-        crate::image_io::save_coords_exr_atomic(
+        crate::image_io::save_coords_exr_f32_atomic(
             path.as_ref(),
             self.width(),
             self.height(),
-            self.coords(),
+            &self.synthesis.coords_f32(),
         )
     }
 }

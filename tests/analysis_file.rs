@@ -7,7 +7,9 @@ use std::cell::Cell;
 use std::path::{Path, PathBuf};
 
 use texsyn::analysis::file::FORMAT_VERSION;
-use texsyn::analysis::{level_count, level_margin, Analysis, LevelData, DIM, MAX_K};
+use texsyn::analysis::{
+    level_count, level_margin, Analysis, AppearanceSpace, FeatureInfo, LevelData, DIM, MAX_K,
+};
 use texsyn::Error;
 
 // ---- allocation tracking: the largest single allocation made by this thread ----------
@@ -102,6 +104,16 @@ fn synthetic(width: u32, height: u32, k: u32, tileable: bool, seed: u64) -> Anal
         k,
         colors,
         levels,
+        appearance: if seed % 2 == 0 {
+            AppearanceSpace::Neighborhood
+        } else {
+            AppearanceSpace::Color
+        },
+        feature: (seed % 3 == 0).then_some(FeatureInfo {
+            weight: 1.5,
+            clamp: 8.0,
+            coverage: 0.25,
+        }),
     }
 }
 
@@ -189,7 +201,7 @@ fn round_trip_bytes_and_struct() {
         }
         let bytes = a.to_bytes();
         assert_eq!(&bytes[..8], b"TEXSYNA\0");
-        assert_eq!(u32::from_le_bytes(bytes[8..12].try_into().unwrap()), 1);
+        assert_eq!(u32::from_le_bytes(bytes[8..12].try_into().unwrap()), 2);
         let plen = u64::from_le_bytes(bytes[12..20].try_into().unwrap());
         assert_eq!(plen as usize + HEADER_LEN + 8, bytes.len());
         let b = Analysis::from_bytes(&bytes, &p()).unwrap();
@@ -283,15 +295,21 @@ fn wrong_version() {
     expect_bad(
         &bytes,
         &[
-            "analysis file version 7 is not supported by this texsyn (expects 1)",
+            "analysis file version 7 is not supported by this texsyn (expects 2)",
             "re-run `texsyn analyze`",
         ],
         4096,
     );
     // The version is reported even when the rest of the file has another layout.
     expect_bad(
-        b"TEXSYNA\0\x02\0\0\0",
-        &["version 2 is not supported"],
+        b"TEXSYNA\0\x03\0\0\0",
+        &["version 3 is not supported"],
+        4096,
+    );
+    // Files of the previous layout (version 1, without the appearance settings).
+    expect_bad(
+        b"TEXSYNA\0\x01\0\0\0",
+        &["version 1 is not supported", "expects 2", "re-run `texsyn analyze`"],
         4096,
     );
 }
@@ -474,4 +492,30 @@ fn crafted_invalid_values() {
     let mut pl = payload_of(&bytes).to_vec();
     pl[12] = 2;
     expect_bad(&wrap(&pl), &["tileable flag is 2"], 1 << 20);
+
+    // Appearance settings (the last 14 bytes: space, flag, weight, clamp, coverage).
+    let at = pl.len() - 14;
+    let mut p2 = payload_of(&bytes).to_vec();
+    p2[at] = 2;
+    expect_bad(&wrap(&p2), &["appearance space is 2"], 1 << 20);
+    let mut p2 = payload_of(&bytes).to_vec();
+    p2[at + 1] = 5;
+    expect_bad(&wrap(&p2), &["feature flag is 5"], 1 << 20);
+    let mut p2 = payload_of(&bytes).to_vec();
+    p2[at + 2..at + 6].copy_from_slice(&1.0f32.to_le_bytes());
+    expect_bad(&wrap(&p2), &["no feature mask is flagged"], 1 << 20);
+    for (weight, clamp, coverage, needle) in [
+        (f32::NAN, 8.0, 0.5, "feature weight is NaN"),
+        (-1.0, 8.0, 0.5, "feature weight is -1"),
+        (1.0, 0.0, 0.5, "feature clamp is 0"),
+        (1.0, 8.0, 1.5, "feature coverage is 1.5"),
+    ] {
+        let mut a = base.clone();
+        a.feature = Some(FeatureInfo {
+            weight,
+            clamp,
+            coverage,
+        });
+        check(a, needle);
+    }
 }

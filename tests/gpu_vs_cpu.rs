@@ -62,13 +62,15 @@ fn compare_pass_by_pass(a: Arc<Analysis>, params: &SynthParams) {
     let plan = SynthPlan::new(&a, params).unwrap();
     let schedule = plan.schedule(&a);
     let mut cpu = vec![[0i32; 2]; plan.coord_count as usize];
+    let jac = plan.jacobians();
     let mut checked = std::collections::HashSet::new();
     for (i, d) in schedule.iter().enumerate() {
-        run_cpu(&a, &schedule[i..i + 1], &mut cpu);
+        run_cpu(&a, &schedule[i..i + 1], &mut cpu, &jac);
         // Check the first dispatch of each kind at each level, and every dispatch at
         // the finest level.
         let finest = d.level + 1 == plan.levels.len();
-        if !(checked.insert((d.kind, d.level)) || finest) || d.kind == PassKind::Gather {
+        let gather = matches!(d.kind, PassKind::Gather | PassKind::GatherAniso);
+        if !(checked.insert((d.kind, d.level)) || finest) || gather {
             continue;
         }
         let g = gpu.run_prefix(ctx(), params, i + 1).unwrap();
@@ -323,5 +325,99 @@ fn windows_far_out_are_refused_not_overflowed() {
     assert_eq!(
         gpu.synthesize_to_host(ctx(), &ok).unwrap(),
         synthesize_cpu(&a, &ok).unwrap()
+    );
+}
+
+// ---------------------------------------------------------------------------------------
+// Anisometric passes
+// ---------------------------------------------------------------------------------------
+
+use texsyn::field::Field;
+
+fn aniso(field: Field, width: u32, height: u32, seed: u32) -> SynthParams {
+    SynthParams {
+        width,
+        height,
+        seed,
+        field: Some(field),
+        ..Default::default()
+    }
+}
+
+#[test]
+fn aniso_identity_reproduces_isometric_exactly() {
+    for tileable in [false, true] {
+        let a = analysis(tileable, 2);
+        let iso = SynthParams {
+            width: 45,
+            height: 31,
+            origin: [-7, 5],
+            seed: 3,
+            ..Default::default()
+        };
+        let identity = Field::Constant {
+            angle: 0.0,
+            scale: [1.0, 1.0],
+            shear: 0.0,
+        };
+        let an = SynthParams {
+            field: Some(identity),
+            ..iso.clone()
+        };
+        let r_iso = synthesize_cpu(&a, &iso).unwrap();
+        let r_an = synthesize_cpu(&a, &an).unwrap();
+        assert_eq!(r_an.coord_frac, 8);
+        let scaled: Vec<[i32; 2]> = r_iso
+            .coords
+            .iter()
+            .map(|c| [c[0] << 8, c[1] << 8])
+            .collect();
+        assert_eq!(r_an.coords, scaled, "tileable {tileable}: coordinates");
+        assert_eq!(r_an.colors, r_iso.colors, "tileable {tileable}: colours");
+        // And on the GPU.
+        let gpu = GpuSynthesizer::new(ctx(), a.clone()).unwrap();
+        assert_eq!(gpu.synthesize_to_host(ctx(), &an).unwrap(), r_an);
+    }
+}
+
+#[test]
+fn aniso_rotation_non_tileable_matches_cpu_pass_by_pass() {
+    let f = Field::Constant {
+        angle: 0.6,
+        scale: [1.3, 0.8],
+        shear: 0.2,
+    };
+    compare_pass_by_pass(analysis(false, 2), &aniso(f, 33, 27, 5));
+}
+
+#[test]
+fn aniso_vortex_tileable_k3_matches_cpu_pass_by_pass() {
+    // A singularity inside the window, a reflection-free rotation field all around it.
+    let f = Field::Vortex {
+        center: [10.5, 12.0],
+        scale: 0.7,
+    };
+    let mut p = aniso(f, 30, 26, 9);
+    p.origin = [-4, 3];
+    compare_pass_by_pass(analysis(true, 3), &p);
+}
+
+#[test]
+fn aniso_perspective_projected_distance_matches_cpu() {
+    // Shear, strong minification near the horizon (clamped singular values), projected
+    // distance at every level.
+    let f = Field::Perspective {
+        horizon: -6.0,
+        bottom: 24.0,
+        center: 15.0,
+        scale: 1.2,
+    };
+    let mut p = aniso(f, 31, 25, 2);
+    p.distance = texsyn::DistanceMode::Projected;
+    let a = analysis(false, 2);
+    let gpu = GpuSynthesizer::new(ctx(), a.clone()).unwrap();
+    assert_eq!(
+        gpu.synthesize_to_host(ctx(), &p).unwrap(),
+        synthesize_cpu(&a, &p).unwrap()
     );
 }

@@ -27,7 +27,8 @@ struct Params {
     window_offset: vec2<i32>,
     window_size: vec2<i32>,
     full_distance: u32,
-    _pad0: u32,
+    // Fractional bits of the coordinates: 0 (isometric) or 8 (anisometric).
+    coord_frac: u32,
     _pad1: u32,
     _pad2: u32,
 }
@@ -49,6 +50,9 @@ struct Params {
 // Exemplar colours, RGBA8.
 @group(0) @binding(6) var<storage, read> colors: array<u32>;
 @group(0) @binding(7) var out_color: texture_storage_2d<rgba8unorm, write>;
+// Anisometric passes: quantized Jacobian per region pixel (row-major a, b, c, d in
+// 1/1024), in the layout of `coords`. A 16-byte placeholder for isometric synthesis.
+@group(0) @binding(8) var<storage, read> jac: array<vec4<i32>>;
 
 // Same as crate::analysis::QE_MAX.
 const QE_MAX: i32 = 4095;
@@ -75,11 +79,14 @@ fn wrap(c: i32, n: i32) -> i32 {
     return ((c % n) + n) % n;
 }
 
+// In units of 2^-coord_frac exemplar pixels.
 fn fit_coord(c: vec2<i32>) -> vec2<i32> {
+    let f = vec2<u32>(params.coord_frac);
     if (params.tileable != 0) {
-        return vec2<i32>(wrap(c.x, params.ex_size.x), wrap(c.y, params.ex_size.y));
+        let n = params.ex_size << f;
+        return vec2<i32>(wrap(c.x, n.x), wrap(c.y, n.y));
     }
-    return clamp(c, vec2<i32>(params.margin), params.ex_size - vec2<i32>(1 + params.margin));
+    return clamp(c, vec2<i32>(params.margin) << f, (params.ex_size - vec2<i32>(1 + params.margin)) << f);
 }
 
 // wrap() for c in [-2n, 3n) without integer division, which CPU Vulkan drivers

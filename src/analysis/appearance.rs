@@ -11,7 +11,7 @@
 
 use super::pca::Pca;
 use super::stack::Plane;
-use super::{par_ranges, DIAGONALS, DIM, ET_QMAX, PROJ_QMAX, QE_MAX};
+use super::{par_ranges, AppearanceSpace, DIAGONALS, DIM, ET_QMAX, PROJ_QMAX, QE_MAX};
 
 /// At most this many pixels feed a covariance estimate (strided sample); beyond it the
 /// estimate no longer changes visibly and the analysis stays fast on large exemplars.
@@ -52,10 +52,17 @@ fn tap_table(n: usize, spacing: u32, taps: &[i32], tileable: bool) -> Vec<u32> {
 const TAPS5: [i32; 5] = [-2, -1, 0, 1, 2];
 
 /// Float transformed exemplar of one level and the PCA residual variance.
+///
+/// `space` chooses the appearance vector: the Gaussian-weighted 5x5 neighbourhood
+/// (`25 * channels` values, the paper's appearance space) or the pixel's own channels
+/// (`channels` values: plain colour, the paper's Figure 4 comparison). Either way it is
+/// reduced by PCA to `DIM` numbers; with fewer than `DIM` input dimensions the remaining
+/// components of `Et` are zero, so synthesis runs unchanged.
 pub fn transformed_exemplar(
     plane: &Plane,
     spacing: u32,
     tileable: bool,
+    space: AppearanceSpace,
     threads: usize,
 ) -> (Vec<[f32; DIM]>, f64) {
     let (w, h, c) = (
@@ -64,9 +71,14 @@ pub fn transformed_exemplar(
         plane.channels as usize,
     );
     let n = w * h;
-    let dim = 25 * c;
-    let xs = tap_table(w, spacing, &TAPS5, tileable);
-    let ys = tap_table(h, spacing, &TAPS5, tileable);
+    let (taps, weights): (&[i32], &[f32]) = match space {
+        AppearanceSpace::Neighborhood => (&TAPS5, &NEIGHBOURHOOD_WEIGHTS),
+        AppearanceSpace::Color => (&[0], &[1.0]),
+    };
+    let nt = taps.len();
+    let dim = nt * nt * c;
+    let xs = tap_table(w, spacing, taps, tileable);
+    let ys = tap_table(h, spacing, taps, tileable);
     // Per-channel mean, subtracted before the covariance accumulation (accuracy).
     let mut mean = vec![0.0f64; c];
     for px in plane.data.chunks_exact(c) {
@@ -78,11 +90,11 @@ pub fn transformed_exemplar(
     let data = &plane.data;
     let gather = |x: usize, y: usize, out: &mut [f32]| {
         let mut o = 0;
-        for dy in 0..5 {
+        for dy in 0..nt {
             let row = ys[dy * h + y] as usize * w;
-            let wy = NEIGHBOURHOOD_WEIGHTS[dy];
-            for dx in 0..5 {
-                let wt = wy * NEIGHBOURHOOD_WEIGHTS[dx];
+            let wy = weights[dy];
+            for dx in 0..nt {
+                let wt = wy * weights[dx];
                 let i = (row + xs[dx * w + x] as usize) * c;
                 for ch in 0..c {
                     out[o] = (data[i + ch] - mean[ch]) * wt;
@@ -103,9 +115,8 @@ pub fn transformed_exemplar(
     for (k, comp) in pca.components.iter().enumerate() {
         let mut b = 0.0f64;
         for (j, cf) in coef.iter_mut().enumerate() {
-            let (dy, dx) = (j / c / 5, j / c % 5);
-            cf[k] =
-                (comp[j] * (NEIGHBOURHOOD_WEIGHTS[dy] * NEIGHBOURHOOD_WEIGHTS[dx]) as f64) as f32;
+            let (dy, dx) = (j / c / nt, j / c % nt);
+            cf[k] = (comp[j] * (weights[dy] * weights[dx]) as f64) as f32;
             b -= comp[j] * pca.mean[j];
         }
         bias[k] = b as f32;
@@ -122,9 +133,9 @@ pub fn transformed_exemplar(
             for x in 0..w {
                 let mut e = bias;
                 let mut j = 0;
-                for dy in 0..5 {
+                for dy in 0..nt {
                     let row = ys[dy * h + y] as usize * w;
-                    for dx in 0..5 {
+                    for dx in 0..nt {
                         let i = (row + xs[dx * w + x] as usize) * c;
                         for ch in 0..c {
                             let v = centred[i + ch];

@@ -6,13 +6,13 @@
 //! ```text
 //! offset  size  field
 //! 0       8     magic  b"TEXSYNA\0"
-//! 8       4     u32    format version (FORMAT_VERSION = 1)
+//! 8       4     u32    format version (FORMAT_VERSION = 2)
 //! 12      8     u64    payload length P in bytes
 //! 20      P     payload (below)
 //! 20+P    8     u64    FNV-1a 64 checksum of the P payload bytes
 //! ```
 //!
-//! Payload, version 1:
+//! Payload, version 2 (version 1 lacked the trailer after the levels):
 //!
 //! ```text
 //! u32 width, u32 height, u32 channels, u8 tileable (0|1), u32 k
@@ -28,6 +28,9 @@
 //!     u64 n_et,      n_et x 8 i16           (n_et == width*height)
 //!     u64 n_qe,      n_qe x 8 i16           (n_qe == width*height)
 //!     u64 n_offsets, n_offsets x 2 i16      (n_offsets == width*height*(k-1))
+//! u8  appearance space                      (0 = neighborhood, 1 = color)
+//! u8  feature mask used (0|1)
+//! f32 feature weight, f32 feature clamp (dmax), f32 mask coverage   (all 0 without a mask)
 //! ```
 //!
 //! Counts are element counts, not byte counts. The file must end right after the
@@ -39,13 +42,14 @@
 use std::io::Write;
 use std::path::Path;
 
-use super::{level_count, Analysis, LevelData, DIM, MAX_K};
+use super::feature::{FEATURE_CLAMP_RANGE, MAX_FEATURE_WEIGHT};
+use super::{level_count, Analysis, AppearanceSpace, FeatureInfo, LevelData, DIM, MAX_K};
 use crate::error::{Error, Result};
 
 /// First 8 bytes of every analysis file.
 pub const MAGIC: [u8; 8] = *b"TEXSYNA\0";
 /// Version of the layout written by this texsyn; the only one it reads.
-pub const FORMAT_VERSION: u32 = 1;
+pub const FORMAT_VERSION: u32 = 2;
 /// Magic + version + payload length.
 const HEADER_LEN: usize = 8 + 4 + 8;
 const CHECKSUM_LEN: usize = 8;
@@ -54,6 +58,8 @@ const MAX_SIDE: u32 = 65536;
 const MIN_SIDE: u32 = 16;
 
 const RERUN: &str = "re-run `texsyn analyze`";
+/// Appearance space, feature flag, weight, clamp, coverage.
+const APPEARANCE_TRAILER_LEN: u64 = 1 + 1 + 3 * 4;
 
 // ---------------------------------------------------------------------------------------
 // Checksum
@@ -166,7 +172,7 @@ impl Analysis {
             n += 8 + 2 * DIM as u64 * lv.qe.len() as u64;
             n += 8 + 4 * lv.offsets.len() as u64;
         }
-        n
+        n + APPEARANCE_TRAILER_LEN
     }
 
     fn write_payload<W: Write>(&self, w: &mut PayloadWriter<'_, W>) -> std::io::Result<()> {
@@ -194,6 +200,19 @@ impl Analysis {
             w.u64(lv.offsets.len() as u64)?;
             w.i16s(lv.offsets.as_flattened())?;
         }
+        w.u8(match self.appearance {
+            AppearanceSpace::Neighborhood => 0,
+            AppearanceSpace::Color => 1,
+        })?;
+        w.u8(self.feature.is_some() as u8)?;
+        let f = self.feature.unwrap_or(FeatureInfo {
+            weight: 0.0,
+            clamp: 0.0,
+            coverage: 0.0,
+        });
+        w.f32(f.weight)?;
+        w.f32(f.clamp)?;
+        w.f32(f.coverage)?;
         Ok(())
     }
 
@@ -486,9 +505,52 @@ fn decode_payload(payload: &[u8]) -> std::result::Result<Analysis, String> {
         });
     }
 
+    let appearance = match r.u8("appearance space")? {
+        0 => AppearanceSpace::Neighborhood,
+        1 => AppearanceSpace::Color,
+        a => return Err(format!("appearance space is {a}, expected 0 or 1")),
+    };
+    let has_feature = r.u8("feature flag")?;
+    let (weight, clamp, coverage) = (
+        r.f32("feature weight")?,
+        r.f32("feature clamp")?,
+        r.f32("feature coverage")?,
+    );
+    let feature = match has_feature {
+        0 => {
+            if (weight, clamp, coverage) != (0.0, 0.0, 0.0) {
+                return Err("feature settings are present but no feature mask is flagged".into());
+            }
+            None
+        }
+        1 => {
+            if !(weight.is_finite() && (0.0..=MAX_FEATURE_WEIGHT).contains(&weight)) {
+                return Err(format!(
+                    "feature weight is {weight}, expected 0..={MAX_FEATURE_WEIGHT}"
+                ));
+            }
+            if !(clamp.is_finite() && FEATURE_CLAMP_RANGE.contains(&clamp)) {
+                return Err(format!(
+                    "feature clamp is {clamp}, expected {}..={}",
+                    FEATURE_CLAMP_RANGE.start(),
+                    FEATURE_CLAMP_RANGE.end()
+                ));
+            }
+            if !(0.0..=1.0).contains(&coverage) {
+                return Err(format!("feature coverage is {coverage}, expected 0..=1"));
+            }
+            Some(FeatureInfo {
+                weight,
+                clamp,
+                coverage,
+            })
+        }
+        f => return Err(format!("feature flag is {f}, expected 0 or 1")),
+    };
+
     if r.remaining() != 0 {
         return Err(format!(
-            "{} unexpected bytes after the last level",
+            "{} unexpected bytes after the appearance settings",
             r.remaining()
         ));
     }
@@ -501,5 +563,7 @@ fn decode_payload(payload: &[u8]) -> std::result::Result<Analysis, String> {
         k,
         colors,
         levels,
+        appearance,
+        feature,
     })
 }

@@ -4,6 +4,7 @@
 //! integers here so that the GPU passes and their CPU mirrors compute identical bytes.
 
 pub mod appearance;
+pub mod feature;
 pub mod file;
 pub mod kcoherence;
 pub mod kdtree;
@@ -11,6 +12,7 @@ pub mod pca;
 pub mod stack;
 
 use crate::error::{Error, Result};
+pub use feature::FeatureMask;
 
 /// Smallest exemplar side we accept: below this the 5x5 neighbourhoods at the finest
 /// level already cover most of the image and synthesis can only copy it.
@@ -42,6 +44,55 @@ pub struct Exemplar {
     pub colors: Vec<[u8; 4]>,
 }
 
+/// What a pixel's appearance vector holds before the PCA to 8D.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum AppearanceSpace {
+    /// The Gaussian-weighted 5x5 neighbourhood of every channel (the paper's appearance
+    /// space; 75D for RGB, 100D with a feature channel).
+    #[default]
+    Neighborhood,
+    /// The pixel's own channels only (3D for RGB, plus the feature channel if any): plain
+    /// colour, for comparison (paper Figure 4). Still projected by PCA into the same 8D
+    /// `Et` (the components beyond the input dimension are zero), so synthesis costs the
+    /// same.
+    Color,
+}
+
+impl AppearanceSpace {
+    /// `"neighborhood"` or `"color"` (the CLI's spelling).
+    pub fn name(self) -> &'static str {
+        match self {
+            AppearanceSpace::Neighborhood => "neighborhood",
+            AppearanceSpace::Color => "color",
+        }
+    }
+}
+
+impl std::str::FromStr for AppearanceSpace {
+    type Err = Error;
+    /// `neighborhood` / `neighbourhood` or `color` / `colour` (any case).
+    fn from_str(s: &str) -> Result<Self> {
+        match s.to_ascii_lowercase().as_str() {
+            "neighborhood" | "neighbourhood" => Ok(AppearanceSpace::Neighborhood),
+            "color" | "colour" => Ok(AppearanceSpace::Color),
+            _ => Err(Error::InvalidParameter(format!(
+                "appearance space {s:?}: expected \"neighborhood\" or \"color\""
+            ))),
+        }
+    }
+}
+
+/// How a feature mask entered an analysis (kept in [`Analysis`] and its file).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FeatureInfo {
+    /// [`AnalysisOptions::feature_weight`].
+    pub weight: f32,
+    /// [`AnalysisOptions::feature_clamp`] (`dmax`, exemplar pixels).
+    pub clamp: f32,
+    /// Fraction of the exemplar's pixels inside the mask.
+    pub coverage: f32,
+}
+
 /// Options of the analysis.
 #[derive(Clone, Debug)]
 pub struct AnalysisOptions {
@@ -54,6 +105,17 @@ pub struct AnalysisOptions {
     pub exclusion_radius: u32,
     /// Worker threads (0 = all available cores).
     pub threads: usize,
+    /// Appearance vector: 5x5 neighbourhoods (default) or plain colour.
+    pub appearance: AppearanceSpace,
+    /// Optional binary feature mask of the exemplar's size (paper section 3.2): its
+    /// clamped signed-distance field becomes an extra channel of the exemplar before the
+    /// Gaussian stack and the neighbourhood PCA (see [`feature`]). `None`: colour only.
+    pub feature_mask: Option<FeatureMask>,
+    /// Weight `w` of the feature channel, in `[0, 100]`: at 1 (default) the channel has
+    /// as much variance as all colour channels together. Ignored without a mask.
+    pub feature_weight: f32,
+    /// Clamp `dmax` of the signed distance, in exemplar pixels (default 8).
+    pub feature_clamp: f32,
 }
 
 impl Default for AnalysisOptions {
@@ -63,6 +125,10 @@ impl Default for AnalysisOptions {
             tileable: None,
             exclusion_radius: 4,
             threads: 0,
+            appearance: AppearanceSpace::Neighborhood,
+            feature_mask: None,
+            feature_weight: feature::DEFAULT_FEATURE_WEIGHT,
+            feature_clamp: feature::DEFAULT_FEATURE_CLAMP,
         }
     }
 }
@@ -105,6 +171,10 @@ pub struct Analysis {
     pub colors: Vec<[u8; 4]>,
     /// Levels `0..=L`, `levels[l].spacing == 2^(L-l)`.
     pub levels: Vec<LevelData>,
+    /// The appearance space the analysis used (informational: synthesis is the same).
+    pub appearance: AppearanceSpace,
+    /// The feature mask's settings if one was used (informational).
+    pub feature: Option<FeatureInfo>,
 }
 
 /// The four diagonals of the runtime neighbourhood, in the order used everywhere.
@@ -252,14 +322,45 @@ pub fn analyze(
             ex.width, ex.height
         )));
     }
+    feature::check_weight(opts.feature_weight)?;
+    feature::check_clamp(opts.feature_clamp)?;
+    if let Some(mask) = &opts.feature_mask {
+        mask.check_size(ex.width, ex.height)?;
+    }
     let threads = opts.threads;
     let tileable = opts.tileable.unwrap_or_else(|| detect_tileable(ex));
     let top = level_count(ex.width, ex.height);
-    let plane = stack::Plane {
-        width: ex.width,
-        height: ex.height,
-        channels: ex.channels,
-        data: ex.values.clone(),
+    // The feature channel, if any, is appended to the colours so that the stack blurs it
+    // and the appearance vectors gather it like a colour.
+    let plane = match &opts.feature_mask {
+        None => stack::Plane {
+            width: ex.width,
+            height: ex.height,
+            channels: ex.channels,
+            data: ex.values.clone(),
+        },
+        Some(mask) => {
+            let c = ex.channels as usize;
+            let f = feature::feature_channel(
+                mask,
+                opts.feature_weight,
+                opts.feature_clamp,
+                &ex.values,
+                c,
+                tileable,
+            );
+            let mut data = Vec::with_capacity(ex.values.len() + f.len());
+            for (px, v) in ex.values.chunks_exact(c).zip(&f) {
+                data.extend_from_slice(px);
+                data.push(*v);
+            }
+            stack::Plane {
+                width: ex.width,
+                height: ex.height,
+                channels: ex.channels + 1,
+                data,
+            }
+        }
     };
     let profile = std::env::var_os("TEXSYN_PROFILE").is_some();
     let t_stack = std::time::Instant::now();
@@ -272,7 +373,8 @@ pub fn analyze(
         let spacing = 1u32 << (top - l as u32);
         let margin = level_margin(ex.width, ex.height, spacing, tileable);
         let t0 = std::time::Instant::now();
-        let (et, residual) = appearance::transformed_exemplar(plane, spacing, tileable, threads);
+        let (et, residual) =
+            appearance::transformed_exemplar(plane, spacing, tileable, opts.appearance, threads);
         let t1 = std::time::Instant::now();
         let q = appearance::quantize_level(&et, ex.width, ex.height, spacing, tileable, threads);
         let t2 = std::time::Instant::now();
@@ -340,5 +442,11 @@ pub fn analyze(
         k: opts.k,
         colors: ex.colors.clone(),
         levels,
+        appearance: opts.appearance,
+        feature: opts.feature_mask.as_ref().map(|m| FeatureInfo {
+            weight: opts.feature_weight,
+            clamp: opts.feature_clamp,
+            coverage: m.coverage() as f32,
+        }),
     })
 }

@@ -7,7 +7,10 @@ use clap::Args;
 
 use texsyn::analysis::{self, Analysis, AnalysisOptions};
 
-use super::{channels_name, check_output_dir, fmt_bytes, fmt_duration, CliResult, TileArgs, Ui};
+use super::{
+    channels_name, check_output_dir, fmt_bytes, fmt_duration, AppearanceArgs, CliResult, TileArgs,
+    Ui,
+};
 
 /// Analyse an exemplar image and save the analysis file (skips the analysis in synth)
 #[derive(Args, Debug)]
@@ -32,6 +35,9 @@ pub struct AnalyzeArgs {
     #[command(flatten)]
     pub tile: TileArgs,
 
+    #[command(flatten)]
+    pub appearance: AppearanceArgs,
+
     /// Similarity-set members lie at least this many pixels from the pixel itself
     #[arg(long, value_name = "R", default_value_t = AnalysisOptions::default().exclusion_radius)]
     pub exclusion: u32,
@@ -43,12 +49,14 @@ pub struct AnalyzeArgs {
 
 pub fn run(ui: &Ui, args: AnalyzeArgs) -> CliResult<()> {
     check_output_dir(&args.output)?;
-    let options = AnalysisOptions {
+    let mut options = AnalysisOptions {
         k: args.k,
         tileable: args.tile.get(),
         exclusion_radius: args.exclusion,
         threads: args.threads,
+        ..AnalysisOptions::default()
     };
+    args.appearance.apply(&mut options)?;
 
     let t0 = Instant::now();
     let exemplar = texsyn::image_io::load_exemplar(&args.exemplar)?;
@@ -101,7 +109,22 @@ fn print_summary(ui: &Ui, args: &AnalyzeArgs, options: &AnalysisOptions, a: &Ana
         "k: {}, exclusion radius: {}",
         a.k, options.exclusion_radius
     ));
+    print_appearance(ui, a);
     print_levels(ui, a);
+}
+
+/// The appearance space and the feature mask's settings.
+pub fn print_appearance(ui: &Ui, a: &Analysis) {
+    let feature = match &a.feature {
+        None => "no feature mask".to_string(),
+        Some(f) => format!(
+            "feature mask covering {:.1}% of the exemplar, weight {}, distance clamp {} px",
+            100.0 * f.coverage,
+            f.weight,
+            f.clamp
+        ),
+    };
+    ui.info(format!("appearance: {}, {feature}", a.appearance.name()));
 }
 
 /// The per-level table: spacing, margin and the PCA residual variances.

@@ -5,6 +5,7 @@
 mod analyze;
 mod bench;
 mod eval;
+mod field;
 mod synth;
 
 use std::io::{IsTerminal, Write};
@@ -73,6 +74,63 @@ impl TileArgs {
             _ => None,
         }
     }
+}
+
+/// `--feature-mask FILE`, `--feature-weight W`, `--appearance color|neighborhood`: how the
+/// appearance vectors of an analysed image are formed.
+#[derive(Args, Debug, Clone, Default)]
+pub struct AppearanceArgs {
+    /// Binary feature mask of the exemplar's size (any image format; bright = feature,
+    /// e.g. mortar or cracks): its clamped signed-distance field joins the appearance
+    /// vectors so synthesis keeps those structures whole
+    #[arg(long, value_name = "FILE")]
+    pub feature_mask: Option<PathBuf>,
+
+    /// Weight of the feature channel in [0, 100]: 1 gives it as much variance as all
+    /// colour channels together; larger values favour structure over colour
+    #[arg(long, value_name = "W", requires = "feature_mask", allow_hyphen_values = true,
+          value_parser = parse_feature_weight)]
+    pub feature_weight: Option<f32>,
+
+    /// Appearance vector: neighborhood (5x5 neighbourhoods reduced to 8D, the paper's
+    /// appearance space) or color (the pixel colour alone, for comparison; same runtime)
+    #[arg(long, value_name = "SPACE", default_value = "neighborhood", value_parser = parse_appearance)]
+    pub appearance: texsyn::analysis::AppearanceSpace,
+}
+
+impl AppearanceArgs {
+    /// Loads the mask (if any) and sets the appearance options. Errors (unreadable mask)
+    /// come before any analysis.
+    pub fn apply(&self, options: &mut texsyn::AnalysisOptions) -> CliResult<()> {
+        options.appearance = self.appearance;
+        if let Some(w) = self.feature_weight {
+            options.feature_weight = w;
+        }
+        if let Some(path) = &self.feature_mask {
+            let mask = texsyn::analysis::FeatureMask::load(path)
+                .map_err(|e| fail(format!("--feature-mask: {e}")))?;
+            options.feature_mask = Some(mask);
+        }
+        Ok(())
+    }
+}
+
+pub fn parse_feature_weight(s: &str) -> Result<f32, String> {
+    let v: f32 = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("\"{s}\" is not a number"))?;
+    texsyn::analysis::feature::check_weight(v).map_err(|e| match e {
+        texsyn::Error::InvalidParameter(m) => m,
+        other => other.to_string(),
+    })?;
+    Ok(v)
+}
+
+pub fn parse_appearance(s: &str) -> Result<texsyn::analysis::AppearanceSpace, String> {
+    s.trim()
+        .parse()
+        .map_err(|_| format!("\"{s}\": the appearance space is neighborhood or color"))
 }
 
 /// Runs the CLI and returns the process exit code.

@@ -13,7 +13,8 @@ use texsyn::passes::SynthParams;
 
 use super::{
     channels_name, check_output_dir, check_output_size, fail, fmt_duration, parse_coherence,
-    parse_randomness, parse_size, parse_window, CliResult, Randomness, TileArgs, Ui, WINDOW_HINT,
+    parse_randomness, parse_size, parse_window, AppearanceArgs, CliResult, Randomness, TileArgs,
+    Ui, WINDOW_HINT,
 };
 
 /// Synthesize a texture of any size from an exemplar image or analysis file
@@ -75,6 +76,15 @@ pub struct SynthArgs {
 
     #[command(flatten)]
     pub tile: TileArgs,
+
+    /// Appearance options used when analysing an image
+    #[command(flatten)]
+    pub appearance: AppearanceArgs,
+
+    /// Anisometric synthesis along a Jacobian field (see the long help: --help)
+    #[arg(long, value_name = "SPEC", value_parser = super::field::parse_field,
+          long_help = super::field::FIELD_HELP)]
+    pub field: Option<super::field::FieldSpec>,
 
     /// Origin of the output window in the infinite texture
     #[arg(long, value_name = "X,Y", default_value = "0,0", value_parser = parse_window, allow_hyphen_values = true)]
@@ -168,11 +178,12 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
                 args.k.unwrap_or(AnalysisOptions::default().k),
             )?;
             let t = Instant::now();
-            let options = AnalysisOptions {
+            let mut options = AnalysisOptions {
                 k: args.k.unwrap_or(AnalysisOptions::default().k),
                 tileable: args.tile.get(),
                 ..AnalysisOptions::default()
             };
+            args.appearance.apply(&mut options)?;
             let a = texsyn::analysis::analyze(&ex, &options, ui.analysis_progress())?;
             (a, false, Some(t.elapsed()))
         }
@@ -199,6 +210,10 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
         finest_passes: args.finest_passes,
         coherence: args.coherence,
         distance: args.distance,
+        field: match &args.field {
+            Some(f) => Some(f.resolve(args.window, width, height)?),
+            None => None,
+        },
     };
     // Validate the parameters before uploading anything.
     texsyn::passes::SynthPlan::new(&analysis, &params)?;
@@ -219,7 +234,7 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
         let synth_readback = t.elapsed();
         let t = Instant::now();
         let rgba8: Vec<u8> = s.colors.iter().flatten().copied().collect();
-        texsyn::image_io::save_coords_exr_atomic(coords_path, width, height, &s.coords)?;
+        texsyn::image_io::save_coords_exr_f32_atomic(coords_path, width, height, &s.coords_f32())?;
         if let Err(e) =
             texsyn::image_io::save_image_atomic(&args.output, width, height, channels, &rgba8)
         {

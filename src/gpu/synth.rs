@@ -84,6 +84,9 @@ pub struct GpuSynthesizer {
     jitter: wgpu::ComputePipeline,
     correct: wgpu::ComputePipeline,
     gather: wgpu::ComputePipeline,
+    upsample_aniso: wgpu::ComputePipeline,
+    correct_aniso: wgpu::ComputePipeline,
+    gather_aniso: wgpu::ComputePipeline,
     et: wgpu::Buffer,
     qe: wgpu::Buffer,
     offsets: wgpu::Buffer,
@@ -187,6 +190,7 @@ impl GpuSynthesizer {
                 count: None,
             }];
             entries.push(storage_entry(1, false));
+            entries.push(storage_entry(8, true));
             for b in [2, 3, 4, 6] {
                 entries.push(storage_entry(b, true));
             }
@@ -239,6 +243,9 @@ impl GpuSynthesizer {
                 jitter: pipeline(&shaders::JITTER),
                 correct: pipeline(&shaders::CORRECT),
                 gather: pipeline(&shaders::GATHER),
+                upsample_aniso: pipeline(&shaders::UPSAMPLE_ANISO),
+                correct_aniso: pipeline(&shaders::CORRECT_ANISO),
+                gather_aniso: pipeline(&shaders::GATHER_ANISO),
                 layout,
                 et,
                 qe,
@@ -269,7 +276,9 @@ impl GpuSynthesizer {
                 "synthesize it in windows (SynthParams::origin) and assemble them",
             ));
         }
-        let bytes = plan.coord_count * 8;
+        // Coordinates (8 bytes per pixel of every level), or the Jacobians (16 bytes).
+        let per_pixel = if p.field.is_some() { 16 } else { 8 };
+        let bytes = plan.coord_count * per_pixel;
         let max = limits
             .max_storage_buffer_binding_size
             .min(limits.max_buffer_size);
@@ -279,7 +288,7 @@ impl GpuSynthesizer {
                 p.width,
                 p.height,
                 format!(
-                    "its coordinate pyramid needs {} MiB in one buffer, the device allows {} MiB",
+                    "its coordinate pyramid (or Jacobian field) needs {} MiB in one buffer, the device allows {} MiB",
                     bytes >> 20,
                     max >> 20
                 ),
@@ -348,6 +357,20 @@ impl GpuSynthesizer {
             bytes[o..o + std::mem::size_of::<PassParams>()]
                 .copy_from_slice(bytemuck::bytes_of(&d.params));
         }
+        // The Jacobian field, rasterized on the host for this plan's regions (a
+        // placeholder for isometric synthesis). Per call, like the parameters.
+        let jacobians = plan.jacobians();
+        let jac = ctx
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("texsyn jacobians"),
+                contents: if jacobians.is_empty() {
+                    &[0u8; 16]
+                } else {
+                    bytemuck::cast_slice(&jacobians)
+                },
+                usage: wgpu::BufferUsages::STORAGE,
+            });
         // Parameters live in their own buffer per call: a later call must not overwrite
         // them before this one's commands have run.
         let params = ctx
@@ -401,6 +424,10 @@ impl GpuSynthesizer {
                     binding: 7,
                     resource: wgpu::BindingResource::TextureView(target),
                 },
+                wgpu::BindGroupEntry {
+                    binding: 8,
+                    resource: jac.as_entire_binding(),
+                },
             ],
         });
         {
@@ -414,6 +441,9 @@ impl GpuSynthesizer {
                     PassKind::Jitter => &self.jitter,
                     PassKind::Correct => &self.correct,
                     PassKind::Gather => &self.gather,
+                    PassKind::UpsampleAniso => &self.upsample_aniso,
+                    PassKind::CorrectAniso => &self.correct_aniso,
+                    PassKind::GatherAniso => &self.gather_aniso,
                 };
                 let [tx, ty] = d.threads();
                 if tx == 0 || ty == 0 {
@@ -555,6 +585,11 @@ impl GpuSynthesizer {
             height: h,
             coords: window,
             colors,
+            coord_frac: if plan.params.field.is_some() {
+                crate::passes::common::COORD_FRAC
+            } else {
+                0
+            },
         })
     }
 

@@ -3,6 +3,9 @@
 
 use bytemuck::{Pod, Zeroable};
 
+/// Fractional bits of anisometric (continuous) coordinates: 1/256 exemplar pixel.
+pub const COORD_FRAC: u32 = 8;
+
 /// Uniform block shared by every pass (one copy per dispatch, at a dynamic offset).
 /// Layout must match `Params` in `shaders/shared/common.wgsl`.
 #[repr(C)]
@@ -49,7 +52,10 @@ pub struct PassParams {
     pub window_size: [i32; 2],
     /// 1: full 32D distance, 0: projected 8D distance (see `correct.rs`).
     pub full_distance: u32,
-    pub _pad: [u32; 3],
+    /// Fractional bits of the coordinates: 0 (isometric, integer exemplar pixels) or
+    /// [`COORD_FRAC`] (anisometric, continuous coordinates in fixed point).
+    pub coord_frac: u32,
+    pub _pad: [u32; 2],
 }
 
 /// Dynamic uniform offsets must be multiples of this (the WebGPU default limit).
@@ -116,15 +122,16 @@ pub fn fit_near(c: [i32; 2], p: &PassParams) -> [i32; 2] {
 }
 
 /// A coordinate after upsampling or jittering: wrapped (tileable) or clamped into the
-/// valid region (non-tileable).
+/// valid region (non-tileable). In units of `2^-coord_frac` exemplar pixels.
 #[inline]
 pub fn fit_coord(c: [i32; 2], p: &PassParams) -> [i32; 2] {
+    let f = p.coord_frac;
     if p.tileable != 0 {
-        [wrap(c[0], p.ex_size[0]), wrap(c[1], p.ex_size[1])]
+        [wrap(c[0], p.ex_size[0] << f), wrap(c[1], p.ex_size[1] << f)]
     } else {
         [
-            c[0].clamp(p.margin, p.ex_size[0] - 1 - p.margin),
-            c[1].clamp(p.margin, p.ex_size[1] - 1 - p.margin),
+            c[0].clamp(p.margin << f, (p.ex_size[0] - 1 - p.margin) << f),
+            c[1].clamp(p.margin << f, (p.ex_size[1] - 1 - p.margin) << f),
         ]
     }
 }
@@ -159,4 +166,126 @@ pub fn region_index(q: [i32; 2], p: &PassParams) -> usize {
     let x = q[0].clamp(0, p.size[0] - 1);
     let y = q[1].clamp(0, p.size[1] - 1);
     (y * p.size[0] + x) as usize
+}
+
+// ---------------------------------------------------------------------------------------
+// Anisometric helpers (mirror of shaders/shared/aniso.wgsl). Coordinates are in
+// 1/2^COORD_FRAC exemplar pixels, Jacobians row-major (a, b, c, d) in 1/2^JAC_FRAC.
+// ---------------------------------------------------------------------------------------
+
+/// `h * J * d` in coordinate units (1/256 px), rounded: `J d` is in 1/1024, so the
+/// product is shifted right by 2. Exact (`256 h d`) when `J = I`.
+#[inline]
+pub fn scaled_jd(h: i32, j: [i32; 4], d: [i32; 2]) -> [i32; 2] {
+    let x = j[0] * d[0] + j[1] * d[1];
+    let y = j[2] * d[0] + j[3] * d[1];
+    [(h * x + 2) >> 2, (h * y + 2) >> 2]
+}
+
+/// `phi(J^-1 d) = round(v / |v|)`: the immediate neighbour in the direction of
+/// `J^-1 d`. Only the direction matters, so `v = sign(det J) adj(J) d` (no division);
+/// a component rounds to +-1 when `|v_i| / |v| >= 1/2`, i.e. `3 v_i^2 >= v_j^2`.
+/// Entries are at most 2^13 in magnitude (|J| <= 8), so the squares fit an i32.
+#[inline]
+pub fn phi_inv(j: [i32; 4], d: [i32; 2]) -> [i32; 2] {
+    let det = j[0] * j[3] - j[1] * j[2];
+    let mut vx = j[3] * d[0] - j[1] * d[1];
+    let mut vy = j[0] * d[1] - j[2] * d[0];
+    if det < 0 {
+        vx = -vx;
+        vy = -vy;
+    }
+    let (ax, ay) = (vx.abs(), vy.abs());
+    [
+        if 3 * ax * ax >= ay * ay {
+            vx.signum()
+        } else {
+            0
+        },
+        if 3 * ay * ay >= ax * ax {
+            vy.signum()
+        } else {
+            0
+        },
+    ]
+}
+
+/// Full wrap (tileable) or clamp to the image (non-tileable) of a fixed-point read
+/// position. The anisometric passes cannot use [`wrap_near`]: `h J d` is not bounded by
+/// the exemplar size.
+#[inline]
+pub fn read_coord_fx(c: [i32; 2], p: &PassParams) -> [i32; 2] {
+    let n = [p.ex_size[0] << COORD_FRAC, p.ex_size[1] << COORD_FRAC];
+    if p.tileable != 0 {
+        [wrap(c[0], n[0]), wrap(c[1], n[1])]
+    } else {
+        [
+            c[0].clamp(0, n[0] - (1 << COORD_FRAC)),
+            c[1].clamp(0, n[1] - (1 << COORD_FRAC)),
+        ]
+    }
+}
+
+/// Whether a fixed-point candidate may be chosen (always for tileable exemplars).
+#[inline]
+pub fn is_valid_fx(c: [i32; 2], p: &PassParams) -> bool {
+    let lo = p.margin << COORD_FRAC;
+    p.tileable != 0
+        || (c[0] >= lo
+            && c[0] <= (p.ex_size[0] - 1 - p.margin) << COORD_FRAC
+            && c[1] >= lo
+            && c[1] <= (p.ex_size[1] - 1 - p.margin) << COORD_FRAC)
+}
+
+/// The exemplar pixel nearest to an in-range fixed-point coordinate (rounded, wrapped
+/// or clamped into the image).
+#[inline]
+pub fn nearest_texel(c: [i32; 2], p: &PassParams) -> [i32; 2] {
+    let half = 1 << (COORD_FRAC - 1);
+    let r = [(c[0] + half) >> COORD_FRAC, (c[1] + half) >> COORD_FRAC];
+    if p.tileable != 0 {
+        [
+            if r[0] >= p.ex_size[0] {
+                r[0] - p.ex_size[0]
+            } else {
+                r[0]
+            },
+            if r[1] >= p.ex_size[1] {
+                r[1] - p.ex_size[1]
+            } else {
+                r[1]
+            },
+        ]
+    } else {
+        [r[0].min(p.ex_size[0] - 1), r[1].min(p.ex_size[1] - 1)]
+    }
+}
+
+/// Bilinear texel positions and weights (1/65536) of a wrapped or clamped fixed-point
+/// position: `(x0, y0, x1, y1, fx, fy)`.
+#[inline]
+pub fn bilinear_taps(u: [i32; 2], p: &PassParams) -> ([i32; 2], [i32; 2], [i32; 2]) {
+    let mask = (1 << COORD_FRAC) - 1;
+    let i0 = [u[0] >> COORD_FRAC, u[1] >> COORD_FRAC];
+    let f = [u[0] & mask, u[1] & mask];
+    let i1 = if p.tileable != 0 {
+        [
+            if i0[0] + 1 == p.ex_size[0] {
+                0
+            } else {
+                i0[0] + 1
+            },
+            if i0[1] + 1 == p.ex_size[1] {
+                0
+            } else {
+                i0[1] + 1
+            },
+        ]
+    } else {
+        [
+            (i0[0] + 1).min(p.ex_size[0] - 1),
+            (i0[1] + 1).min(p.ex_size[1] - 1),
+        ]
+    };
+    (i0, i1, f)
 }

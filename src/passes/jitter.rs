@@ -28,7 +28,8 @@ pub fn run(p: &PassParams, coords: &mut [[i32; 2]]) {
                 p.seed,
                 p.jitter_amp,
             );
-            coords[i] = fit_coord([coords[i][0] + o[0], coords[i][1] + o[1]], p);
+            let f = p.coord_frac;
+            coords[i] = fit_coord([coords[i][0] + (o[0] << f), coords[i][1] + (o[1] << f)], p);
         }
     }
 }

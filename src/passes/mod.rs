@@ -4,10 +4,13 @@
 
 pub mod common;
 pub mod correct;
+pub mod correct_aniso;
 pub mod gather;
+pub mod gather_aniso;
 pub mod jitter;
 pub mod plan;
 pub mod upsample;
+pub mod upsample_aniso;
 
 pub use plan::{DistanceMode, LevelPlan, SynthParams, SynthPlan};
 
@@ -20,8 +23,23 @@ use plan::{Dispatch, PassKind};
 pub struct Synthesis {
     pub width: u32,
     pub height: u32,
+    /// Exemplar coordinates in units of `2^-coord_frac` exemplar pixels.
     pub coords: Vec<[i32; 2]>,
     pub colors: Vec<[u8; 4]>,
+    /// 0 for isometric synthesis (integer pixels), [`common::COORD_FRAC`] for
+    /// anisometric synthesis (continuous coordinates).
+    pub coord_frac: u32,
+}
+
+impl Synthesis {
+    /// Coordinates in exemplar pixels.
+    pub fn coords_f32(&self) -> Vec<[f32; 2]> {
+        let s = 1.0 / (1u32 << self.coord_frac) as f32;
+        self.coords
+            .iter()
+            .map(|c| [c[0] as f32 * s, c[1] as f32 * s])
+            .collect()
+    }
 }
 
 /// Tables of one level, as slices of the analysis.
@@ -36,27 +54,48 @@ pub fn level_tables(analysis: &Analysis, level: usize) -> correct::LevelTables<'
 }
 
 /// Runs dispatches of a schedule on the CPU over the concatenated coordinate array
-/// (every level's region). Returns the gather result if a gather dispatch ran.
+/// (every level's region) and, for anisometric plans, the Jacobians in the same layout
+/// ([`SynthPlan::jacobians`]). Returns the gather result if a gather dispatch ran.
 pub fn run_cpu(
     analysis: &Analysis,
     schedule: &[Dispatch],
     coords: &mut [[i32; 2]],
+    jac: &[[i32; 4]],
 ) -> Option<Synthesis> {
     let mut out = None;
     for d in schedule {
-        match d.kind {
-            PassKind::Upsample => upsample::run(&d.params, coords),
-            PassKind::Jitter => jitter::run(&d.params, coords),
-            PassKind::Correct => correct::run(&d.params, &level_tables(analysis, d.level), coords),
-            PassKind::Gather => {
-                let (c, col) = gather::run(&d.params, coords, &analysis.colors);
-                out = Some(Synthesis {
-                    width: d.params.window_size[0] as u32,
-                    height: d.params.window_size[1] as u32,
-                    coords: c,
-                    colors: col,
-                });
+        let gathered = match d.kind {
+            PassKind::Upsample => {
+                upsample::run(&d.params, coords);
+                None
             }
+            PassKind::UpsampleAniso => {
+                upsample_aniso::run(&d.params, coords, jac);
+                None
+            }
+            PassKind::Jitter => {
+                jitter::run(&d.params, coords);
+                None
+            }
+            PassKind::Correct => {
+                correct::run(&d.params, &level_tables(analysis, d.level), coords);
+                None
+            }
+            PassKind::CorrectAniso => {
+                correct_aniso::run(&d.params, &level_tables(analysis, d.level), coords, jac);
+                None
+            }
+            PassKind::Gather => Some(gather::run(&d.params, coords, &analysis.colors)),
+            PassKind::GatherAniso => Some(gather_aniso::run(&d.params, coords, &analysis.colors)),
+        };
+        if let Some((c, col)) = gathered {
+            out = Some(Synthesis {
+                width: d.params.window_size[0] as u32,
+                height: d.params.window_size[1] as u32,
+                coords: c,
+                colors: col,
+                coord_frac: d.params.coord_frac,
+            });
         }
     }
     out
@@ -67,5 +106,6 @@ pub fn synthesize_cpu(analysis: &Analysis, params: &SynthParams) -> Result<Synth
     let plan = SynthPlan::new(analysis, params)?;
     let schedule = plan.schedule(analysis);
     let mut coords = vec![[0i32; 2]; plan.coord_count as usize];
-    Ok(run_cpu(analysis, &schedule, &mut coords).expect("schedule ends with a gather"))
+    let jac = plan.jacobians();
+    Ok(run_cpu(analysis, &schedule, &mut coords, &jac).expect("schedule ends with a gather"))
 }

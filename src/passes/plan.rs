@@ -7,9 +7,10 @@
 //! that far from the region edge never see the clamped reads at the edge: the result is
 //! independent of the window, and overlapping windows agree.
 
-use super::common::PassParams;
+use super::common::{PassParams, COORD_FRAC};
 use crate::analysis::Analysis;
 use crate::error::{Error, Result};
+use crate::field::{self, Field};
 
 /// User-facing synthesis parameters.
 #[derive(Clone, Debug, PartialEq)]
@@ -33,6 +34,10 @@ pub struct SynthParams {
     pub coherence: f32,
     /// Which neighbourhood distance the correction uses.
     pub distance: DistanceMode,
+    /// Jacobian field for anisometric synthesis (paper section 5); `None` is isometric.
+    /// With a field, coordinates are continuous (1/256 exemplar pixel) and the
+    /// anisometric passes run.
+    pub field: Option<Field>,
 }
 
 /// Neighbourhood distance of the correction (see `passes/correct.rs`).
@@ -60,6 +65,7 @@ impl Default for SynthParams {
             finest_passes: 1,
             coherence: 1.0,
             distance: DistanceMode::Mixed,
+            field: None,
         }
     }
 }
@@ -137,6 +143,18 @@ impl SynthPlan {
                 "coherence {} must be between 0 and 4",
                 params.coherence
             )));
+        }
+        if let Some(f) = &params.field {
+            f.validate()?;
+            // h J d must fit the fixed-point arithmetic: h <= 2^13 (|J d| <= 2^14 / 1024).
+            let h = analysis.levels.first().map_or(1, |l| l.spacing);
+            if h > 1 << 13 {
+                return Err(Error::InvalidParameter(format!(
+                    "anisometric synthesis supports exemplars up to 8192 pixels a side \
+                     (this one has {} levels)",
+                    analysis.levels.len()
+                )));
+            }
         }
         for &r in &params.randomness {
             if !r.is_finite() || !(0.0..=2.0).contains(&r) {
@@ -275,8 +293,35 @@ impl SynthPlan {
             window_offset: [self.window_offset[0] as i32, self.window_offset[1] as i32],
             window_size: [self.params.width as i32, self.params.height as i32],
             full_distance: 0,
-            _pad: [0; 3],
+            coord_frac: if self.params.field.is_some() {
+                COORD_FRAC
+            } else {
+                0
+            },
+            _pad: [0; 2],
         }
+    }
+}
+
+impl SynthPlan {
+    /// Quantized Jacobians of every level's region, in the coordinate array's layout
+    /// (empty for isometric synthesis). Pixel `p` of level `l` samples the field at its
+    /// centre in output pixels.
+    pub fn jacobians(&self) -> Vec<[i32; 4]> {
+        let Some(f) = &self.params.field else {
+            return Vec::new();
+        };
+        let last = self.levels.len() as u32 - 1;
+        let mut out = Vec::with_capacity(self.coord_count as usize);
+        for (i, l) in self.levels.iter().enumerate() {
+            out.extend(field::rasterize_region(
+                f,
+                l.origin,
+                l.size,
+                last - i as u32,
+            ));
+        }
+        out
     }
 }
 
@@ -287,6 +332,10 @@ pub enum PassKind {
     Jitter,
     Correct,
     Gather,
+    /// Anisometric variants (continuous coordinates, Jacobian field).
+    UpsampleAniso,
+    CorrectAniso,
+    GatherAniso,
 }
 
 /// One dispatch of the schedule: the GPU and the CPU mirror run the same list.
@@ -302,12 +351,16 @@ impl Dispatch {
     pub fn threads(&self) -> [u32; 2] {
         let p = &self.params;
         match self.kind {
-            PassKind::Upsample | PassKind::Jitter => [p.size[0] as u32, p.size[1] as u32],
-            PassKind::Correct => [
+            PassKind::Upsample | PassKind::UpsampleAniso | PassKind::Jitter => {
+                [p.size[0] as u32, p.size[1] as u32]
+            }
+            PassKind::Correct | PassKind::CorrectAniso => [
                 (p.size[0] as u32).div_ceil(2),
                 (p.size[1] as u32).div_ceil(2),
             ],
-            PassKind::Gather => [p.window_size[0] as u32, p.window_size[1] as u32],
+            PassKind::Gather | PassKind::GatherAniso => {
+                [p.window_size[0] as u32, p.window_size[1] as u32]
+            }
         }
     }
 }
@@ -318,11 +371,21 @@ pub const SUBPASS_ORDER: [[i32; 2]; 4] = [[0, 0], [1, 1], [1, 0], [0, 1]];
 impl SynthPlan {
     /// Every dispatch of the synthesis, in order.
     pub fn schedule(&self, analysis: &Analysis) -> Vec<Dispatch> {
+        let aniso = self.params.field.is_some();
+        let (upsample, correct, gather) = if aniso {
+            (
+                PassKind::UpsampleAniso,
+                PassKind::CorrectAniso,
+                PassKind::GatherAniso,
+            )
+        } else {
+            (PassKind::Upsample, PassKind::Correct, PassKind::Gather)
+        };
         let mut out = Vec::new();
         for level in 0..self.levels.len() {
             let params = self.pass_params(analysis, level);
             out.push(Dispatch {
-                kind: PassKind::Upsample,
+                kind: upsample,
                 level,
                 params,
             });
@@ -355,7 +418,7 @@ impl SynthPlan {
                         ..params
                     };
                     out.push(Dispatch {
-                        kind: PassKind::Correct,
+                        kind: correct,
                         level,
                         params,
                     });
@@ -364,7 +427,7 @@ impl SynthPlan {
         }
         let last = self.levels.len() - 1;
         out.push(Dispatch {
-            kind: PassKind::Gather,
+            kind: gather,
             level: last,
             params: self.pass_params(analysis, last),
         });

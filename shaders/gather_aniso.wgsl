@@ -1,0 +1,27 @@
+// Anisometric gather (mirror: src/passes/gather_aniso.rs): the exemplar colour
+// bilinearly interpolated at the finest level's continuous coordinate, integer weights.
+#include "shared/common.wgsl"
+#include "shared/aniso.wgsl"
+
+fn color_u(c: vec2<i32>) -> vec4<i32> {
+    let w = colors[ex_index(c)];
+    return vec4<i32>(vec4<u32>(w, w >> 8u, w >> 16u, w >> 24u) & vec4<u32>(255u));
+}
+
+@compute @workgroup_size(8, 8, 1)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let p = vec2<i32>(gid.xy);
+    if (any(p >= params.window_size)) {
+        return;
+    }
+    let q = p + params.window_offset;
+    let c = coords[params.coord_base + u32(q.y * params.size.x + q.x)];
+    var i0: vec2<i32>;
+    var i1: vec2<i32>;
+    let f = bilinear_taps(read_coord_fx(c), &i0, &i1);
+    let g = vec2<i32>(256) - f;
+    let v = g.x * g.y * color_u(i0) + f.x * g.y * color_u(vec2<i32>(i1.x, i0.y))
+        + g.x * f.y * color_u(vec2<i32>(i0.x, i1.y)) + f.x * f.y * color_u(i1);
+    let rgba = vec4<f32>((v + vec4<i32>(32768)) >> vec4<u32>(16u)) / 255.0;
+    textureStore(out_color, p, rgba);
+}

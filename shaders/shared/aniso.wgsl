@@ -1,0 +1,59 @@
+// Fixed-point helpers of the anisometric passes (mirror: the anisometric section of
+// src/passes/common.rs). Coordinates in 1/256 exemplar pixel, Jacobians in 1/1024.
+
+const COORD_FRAC: u32 = 8u;
+
+// h * J * d in coordinate units, rounded (exact 256 h d when J = I).
+fn scaled_jd(h: i32, j: vec4<i32>, d: vec2<i32>) -> vec2<i32> {
+    let v = vec2<i32>(j.x * d.x + j.y * d.y, j.z * d.x + j.w * d.y);
+    return (h * v + vec2<i32>(2)) >> vec2<u32>(2u);
+}
+
+// phi(J^-1 d): the immediate neighbour in the direction of sign(det J) adj(J) d.
+fn phi_inv(j: vec4<i32>, d: vec2<i32>) -> vec2<i32> {
+    let det = j.x * j.w - j.y * j.z;
+    var v = vec2<i32>(j.w * d.x - j.y * d.y, j.x * d.y - j.z * d.x);
+    if (det < 0) {
+        v = -v;
+    }
+    let a = abs(v);
+    let sq = a * a;
+    return select(vec2<i32>(0), sign(v), 3 * sq >= sq.yx);
+}
+
+fn read_coord_fx(c: vec2<i32>) -> vec2<i32> {
+    let n = params.ex_size << vec2<u32>(COORD_FRAC);
+    if (params.tileable != 0) {
+        return vec2<i32>(wrap(c.x, n.x), wrap(c.y, n.y));
+    }
+    return clamp(c, vec2<i32>(0), n - vec2<i32>(1 << COORD_FRAC));
+}
+
+fn is_valid_fx(c: vec2<i32>) -> bool {
+    if (params.tileable != 0) {
+        return true;
+    }
+    let lo = vec2<i32>(params.margin << COORD_FRAC);
+    let hi = (params.ex_size - vec2<i32>(1 + params.margin)) << vec2<u32>(COORD_FRAC);
+    return all(c >= lo) && all(c <= hi);
+}
+
+fn nearest_texel(c: vec2<i32>) -> vec2<i32> {
+    let r = (c + vec2<i32>(1 << (COORD_FRAC - 1u))) >> vec2<u32>(COORD_FRAC);
+    if (params.tileable != 0) {
+        return select(r, r - params.ex_size, r >= params.ex_size);
+    }
+    return min(r, params.ex_size - vec2<i32>(1));
+}
+
+// Bilinear taps of a wrapped/clamped position: i0, i1 and the fractions (0..255).
+fn bilinear_taps(u: vec2<i32>, i0: ptr<function, vec2<i32>>, i1: ptr<function, vec2<i32>>) -> vec2<i32> {
+    let a = u >> vec2<u32>(COORD_FRAC);
+    *i0 = a;
+    if (params.tileable != 0) {
+        *i1 = select(a + vec2<i32>(1), vec2<i32>(0), a + vec2<i32>(1) == params.ex_size);
+    } else {
+        *i1 = min(a + vec2<i32>(1), params.ex_size - vec2<i32>(1));
+    }
+    return u & vec2<i32>((1 << COORD_FRAC) - 1);
+}

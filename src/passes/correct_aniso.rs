@@ -1,0 +1,159 @@
+//! Mirror of `shaders/correct_aniso.wgsl`: one anisometric correction subpass (paper
+//! section 5). Coordinates are continuous (1/256 exemplar pixel), `J(p)` comes per pixel
+//! from the field.
+//!
+//! Neighbourhood: for each diagonal `D` and `D' in {D, (D.x,0), (0,D.y)}`, the pixel
+//! `p + Δ` with `Δ = phi(J^-1 D')` (the immediate neighbour closest in direction)
+//! predicts `Et[S[p+Δ] - h J Δ + h D]`, read with bilinear interpolation (integer
+//! weights). Summed as in the isometric pass (`3 N_S(p;D)`).
+//!
+//! Candidates: `S[p+d] + O_i(S[p+d]) - h J d` for the 3x3 block and `i = 1..k`, the
+//! similarity offsets taken at the exemplar pixel nearest to `S[p+d]`. A candidate's
+//! distance is evaluated at its nearest exemplar pixel (projected: `qe`, full: `Et` at its
+//! four diagonals), which keeps the per-candidate cost of the isometric pass; the
+//! neighbourhood itself, computed once per pixel, is interpolated. Same tie rule and
+//! coherence bias as the isometric pass. With `J = I` every coordinate stays a multiple
+//! of 256 and the result is the isometric pass's times 256 (tested).
+
+use super::common::{
+    bilinear_taps, fit_coord, is_valid_fx, nearest_texel, phi_inv, read_coord_fx, region_index,
+    scaled_jd, PassParams, COORD_FRAC,
+};
+use super::correct::{full_distance, project, projected_distance, LevelTables};
+use crate::analysis::{DIAGONALS, DIM};
+
+#[inline]
+fn ex_index(c: [i32; 2], p: &PassParams) -> usize {
+    (c[1] * p.ex_size[0] + c[0]) as usize
+}
+
+/// `Et` bilinearly interpolated at a fixed-point position (weights in 1/65536, rounded).
+pub fn et_bilinear(p: &PassParams, t: &LevelTables, u: [i32; 2]) -> [i32; DIM] {
+    let (i0, i1, f) = bilinear_taps(read_coord_fx(u, p), p);
+    let e00 = t.et[ex_index(i0, p)];
+    if f == [0, 0] {
+        return e00.map(|v| v as i32);
+    }
+    let e10 = t.et[ex_index([i1[0], i0[1]], p)];
+    let e01 = t.et[ex_index([i0[0], i1[1]], p)];
+    let e11 = t.et[ex_index(i1, p)];
+    let w00 = (256 - f[0]) * (256 - f[1]);
+    let w10 = f[0] * (256 - f[1]);
+    let w01 = (256 - f[0]) * f[1];
+    let w11 = f[0] * f[1];
+    let mut out = [0i32; DIM];
+    for c in 0..DIM {
+        let v =
+            w00 * e00[c] as i32 + w10 * e10[c] as i32 + w01 * e01[c] as i32 + w11 * e11[c] as i32;
+        out[c] = (v + 32768) >> 16;
+    }
+    out
+}
+
+/// Per diagonal, the sum of the three anisometric predictions (`3 N_S(q;D)`).
+pub fn prediction_sums(
+    p: &PassParams,
+    t: &LevelTables,
+    coords: &[[i32; 2]],
+    jac: &[[i32; 4]],
+    q: [i32; 2],
+) -> [[i32; DIM]; 4] {
+    let base = p.coord_base as usize;
+    let j = jac[base + region_index(q, p)];
+    let h = p.spacing;
+    let one = 1 << COORD_FRAC;
+    let mut out = [[0i32; DIM]; 4];
+    for (k, d) in DIAGONALS.iter().enumerate() {
+        for dp in [*d, [d[0], 0], [0, d[1]]] {
+            let delta = phi_inv(j, dp);
+            let s = coords[base + region_index([q[0] + delta[0], q[1] + delta[1]], p)];
+            let o = scaled_jd(h, j, delta);
+            let u = [s[0] - o[0] + h * one * d[0], s[1] - o[1] + h * one * d[1]];
+            let e = et_bilinear(p, t, u);
+            for c in 0..DIM {
+                out[k][c] += e[c];
+            }
+        }
+    }
+    out
+}
+
+/// New fixed-point coordinate of the pixel at region position `q`.
+pub fn correct_pixel(
+    p: &PassParams,
+    t: &LevelTables,
+    coords: &[[i32; 2]],
+    jac: &[[i32; 4]],
+    q: [i32; 2],
+) -> [i32; 2] {
+    let base = p.coord_base as usize;
+    let j = jac[base + region_index(q, p)];
+    let h = p.spacing;
+    let sums = prediction_sums(p, t, coords, jac, q);
+    let full = p.full_distance != 0;
+    let ns = if full { [0; DIM] } else { project(p, t, &sums) };
+    let distance = |c: [i32; 2]| {
+        let n = nearest_texel(c, p);
+        if full {
+            full_distance(p, t, &sums, n)
+        } else {
+            projected_distance(&ns, &t.qe[ex_index(n, p)])
+        }
+    };
+    let mut best = coords[base + region_index(q, p)];
+    let mut best_d = u32::MAX;
+    if is_valid_fx(best, p) {
+        best_d = distance(best);
+    }
+    let km1 = (p.k - 1).max(0) as usize;
+    for dy in -1..=1 {
+        for dx in -1..=1 {
+            let s = coords[base + region_index([q[0] + dx, q[1] + dy], p)];
+            let hjd = scaled_jd(h, j, [dx, dy]);
+            let sn = nearest_texel(s, p);
+            for i in 0..p.k as usize {
+                let o = if i == 0 {
+                    [0, 0]
+                } else {
+                    let o = t.offsets[ex_index(sn, p) * km1 + i - 1];
+                    [(o[0] as i32) << COORD_FRAC, (o[1] as i32) << COORD_FRAC]
+                };
+                let raw = [s[0] + o[0] - hjd[0], s[1] + o[1] - hjd[1]];
+                if !is_valid_fx(raw, p) {
+                    continue;
+                }
+                let c = fit_coord(raw, p);
+                if c == best {
+                    continue;
+                }
+                let mut d = distance(c);
+                if i > 0 {
+                    d += (d >> 4) * p.coherence;
+                }
+                if d < best_d {
+                    best_d = d;
+                    best = c;
+                }
+            }
+        }
+    }
+    best
+}
+
+/// One subpass over the level's region.
+pub fn run(p: &PassParams, t: &LevelTables, coords: &mut [[i32; 2]], jac: &[[i32; 4]]) {
+    let start = [
+        (p.parity[0] - p.origin[0]) & 1,
+        (p.parity[1] - p.origin[1]) & 1,
+    ];
+    let mut y = start[1];
+    while y < p.size[1] {
+        let mut x = start[0];
+        while x < p.size[0] {
+            let c = correct_pixel(p, t, coords, jac, [x, y]);
+            coords[p.coord_base as usize + (y * p.size[0] + x) as usize] = c;
+            x += 2;
+        }
+        y += 2;
+    }
+}
