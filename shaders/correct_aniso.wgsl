@@ -1,18 +1,29 @@
 // Anisometric correction subpass (mirror: src/passes/correct_aniso.rs). Continuous
-// (fixed-point) coordinates, J(p) per pixel; neighbourhood predictions read Et with
-// integer bilinear weights, candidates are scored at their nearest exemplar pixel.
+// (fixed-point) coordinates, J(p) per pixel; neighbourhood predictions read Et and the
+// projected distance reads qe with integer bilinear weights; the full distance scores a
+// candidate at its nearest exemplar pixel.
 #include "shared/common.wgsl"
 #include "shared/aniso.wgsl"
 #include "shared/distance.wgsl"
 
-// Et bilinearly interpolated at a fixed-point position, added to (lo, hi).
-fn add_et_bilinear(u: vec2<i32>, acc_lo: ptr<function, vec4<i32>>, acc_hi: ptr<function, vec4<i32>>) {
+// Texel of table 0 (Et) or 1 (qe).
+fn table_at(table: u32, c: vec2<i32>, lo: ptr<function, vec4<i32>>, hi: ptr<function, vec4<i32>>) {
+    if (table == 0u) {
+        unpack8(et[params.et_base + ex_index(c)], lo, hi);
+    } else {
+        unpack8(qe[params.et_base + ex_index(c)], lo, hi);
+    }
+}
+
+// Table 0 (Et) or 1 (qe) bilinearly interpolated at a fixed-point position, added to
+// (acc_lo, acc_hi).
+fn add_bilinear(table: u32, u: vec2<i32>, acc_lo: ptr<function, vec4<i32>>, acc_hi: ptr<function, vec4<i32>>) {
     var i0: vec2<i32>;
     var i1: vec2<i32>;
     let f = bilinear_taps(read_coord_fx(u), &i0, &i1);
     var lo: vec4<i32>;
     var hi: vec4<i32>;
-    et_at(i0, &lo, &hi);
+    table_at(table, i0, &lo, &hi);
     if (all(f == vec2<i32>(0))) {
         *acc_lo += lo;
         *acc_hi += hi;
@@ -21,18 +32,30 @@ fn add_et_bilinear(u: vec2<i32>, acc_lo: ptr<function, vec4<i32>>, acc_hi: ptr<f
     let g = vec2<i32>(256) - f;
     var s_lo = g.x * g.y * lo;
     var s_hi = g.x * g.y * hi;
-    et_at(vec2<i32>(i1.x, i0.y), &lo, &hi);
+    table_at(table, vec2<i32>(i1.x, i0.y), &lo, &hi);
     s_lo += f.x * g.y * lo;
     s_hi += f.x * g.y * hi;
-    et_at(vec2<i32>(i0.x, i1.y), &lo, &hi);
+    table_at(table, vec2<i32>(i0.x, i1.y), &lo, &hi);
     s_lo += g.x * f.y * lo;
     s_hi += g.x * f.y * hi;
-    et_at(i1, &lo, &hi);
+    table_at(table, i1, &lo, &hi);
     s_lo += f.x * f.y * lo;
     s_hi += f.x * f.y * hi;
     let r = vec4<i32>(32768);
     *acc_lo += (s_lo + r) >> vec4<u32>(16u);
     *acc_hi += (s_hi + r) >> vec4<u32>(16u);
+}
+
+// Projected distance against qe interpolated at candidate c.
+fn projected_distance_at(ns_lo: vec4<i32>, ns_hi: vec4<i32>, c: vec2<i32>) -> u32 {
+    var e_lo = vec4<i32>(0);
+    var e_hi = vec4<i32>(0);
+    add_bilinear(1u, c, &e_lo, &e_hi);
+    let m = vec4<i32>(2 * QE_MAX);
+    let a = vec4<u32>(clamp(ns_lo - e_lo, -m, m));
+    let b = vec4<u32>(clamp(ns_hi - e_hi, -m, m));
+    let sq = a * a + b * b;
+    return sq.x + sq.y + sq.z + sq.w;
 }
 
 // One prediction of Et at q + D from the neighbour in the direction of J^-1 D'.
@@ -41,7 +64,7 @@ fn predict(q: vec2<i32>, j: vec4<i32>, d: vec2<i32>, dp: vec2<i32>, acc_lo: ptr<
     let s = coords[region_index(q + delta)];
     let h = params.spacing;
     let u = s - scaled_jd(h, j, delta) + (h << COORD_FRAC) * d;
-    add_et_bilinear(u, acc_lo, acc_hi);
+    add_bilinear(0u, u, acc_lo, acc_hi);
 }
 
 fn prediction_sum(q: vec2<i32>, j: vec4<i32>, d: vec2<i32>, s_lo: ptr<function, vec4<i32>>, s_hi: ptr<function, vec4<i32>>) {
@@ -88,12 +111,12 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     var best = coords[self_index];
     var best_d = 0xffffffffu;
     if (is_valid_fx(best)) {
-        let n = nearest_texel(best);
         if (full) {
+            let n = nearest_texel(best);
             best_d = full_term(s0l, s0h, n + h) + full_term(s1l, s1h, n + vec2<i32>(h.x, -h.y))
                 + full_term(s2l, s2h, n + vec2<i32>(-h.x, h.y)) + full_term(s3l, s3h, n - h);
         } else {
-            best_d = projected_distance(ns_lo, ns_hi, n);
+            best_d = projected_distance_at(ns_lo, ns_hi, best);
         }
     }
     let km1 = u32(max(params.k - 1, 0));
@@ -117,13 +140,13 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
                 if (all(c == best)) {
                     continue;
                 }
-                let n = nearest_texel(c);
                 var dist: u32;
                 if (full) {
+                    let n = nearest_texel(c);
                     dist = full_term(s0l, s0h, n + h) + full_term(s1l, s1h, n + vec2<i32>(h.x, -h.y))
                         + full_term(s2l, s2h, n + vec2<i32>(-h.x, h.y)) + full_term(s3l, s3h, n - h);
                 } else {
-                    dist = projected_distance(ns_lo, ns_hi, n);
+                    dist = projected_distance_at(ns_lo, ns_hi, c);
                 }
                 if (i > 0) {
                     dist += (dist >> 4u) * params.coherence;

@@ -1196,3 +1196,128 @@ mod tests {
         assert!(FloatImage::new(2, 2, 3, vec![0.0; 11]).is_err());
     }
 }
+
+// ---------------------------------------------------------------------------------------
+// Anisometric output: does the texture follow the requested Jacobian field?
+// ---------------------------------------------------------------------------------------
+
+/// How well a coordinate map follows a Jacobian field (see [`jacobian_fidelity`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct JacobianReport {
+    /// Pixels with both forward neighbours inside the image.
+    pub pixels: usize,
+    /// Relative tolerance used for the `within_*` fractions.
+    pub tolerance: f64,
+    /// Fraction of all those pixels whose finite-difference Jacobian is within
+    /// `tolerance` of the field (relative Frobenius error).
+    pub within_all: f64,
+    /// The same over pixels that are not on a patch seam.
+    pub within_non_seam: f64,
+    /// Fraction of pixels on a patch seam: a forward neighbour's coordinate differs
+    /// from the field's prediction by more than one exemplar pixel (a jump to another
+    /// part of the exemplar, not a distortion).
+    pub seam_fraction: f64,
+    /// Median relative Frobenius error over non-seam pixels.
+    pub median_error_non_seam: f64,
+}
+
+impl JacobianReport {
+    pub fn to_json(&self) -> String {
+        format!(
+            "{{\"pixels\":{},\"tolerance\":{},\"within_all\":{},\"within_non_seam\":{},\"seam_fraction\":{},\"median_error_non_seam\":{}}}",
+            self.pixels,
+            json_num(self.tolerance),
+            json_num(self.within_all),
+            json_num(self.within_non_seam),
+            json_num(self.seam_fraction),
+            json_num(self.median_error_non_seam)
+        )
+    }
+}
+
+/// Compares the finite-difference Jacobian of a continuous coordinate map (exemplar
+/// pixels, e.g. [`crate::Synthesis::coords_f32`]) with the field it was synthesized
+/// along. `J_obs(p) = [S(p+x) - S(p), S(p+y) - S(p)]` (differences wrapped to the
+/// shortest way around the exemplar), against `J` at the pixel (output position
+/// `origin + p`, with the same clamping as synthesis). Error:
+/// `|J_obs - J|_F / |J|_F`.
+pub fn jacobian_fidelity(
+    coords: &[[f32; 2]],
+    width: u32,
+    height: u32,
+    exemplar_size: [u32; 2],
+    origin: [i32; 2],
+    field: &crate::field::Field,
+    tolerance: f64,
+) -> Result<JacobianReport> {
+    let (w, h) = (width as usize, height as usize);
+    if coords.len() != w * h || w < 2 || h < 2 {
+        return Err(invalid(format!(
+            "coordinate map of {} values for {width}x{height} (at least 2x2 needed)",
+            coords.len()
+        )));
+    }
+    let ex = [exemplar_size[0] as f64, exemplar_size[1] as f64];
+    let wrap = |d: f64, n: f64| d - n * (d / n).round();
+    let mut errors_all = 0usize;
+    let mut errors_ok = Vec::new();
+    let mut seams = 0usize;
+    let mut total = 0usize;
+    for y in 0..h - 1 {
+        for x in 0..w - 1 {
+            let s = coords[y * w + x];
+            let sx = coords[y * w + x + 1];
+            let sy = coords[(y + 1) * w + x];
+            let cx = [
+                wrap((sx[0] - s[0]) as f64, ex[0]),
+                wrap((sx[1] - s[1]) as f64, ex[1]),
+            ];
+            let cy = [
+                wrap((sy[0] - s[0]) as f64, ex[0]),
+                wrap((sy[1] - s[1]) as f64, ex[1]),
+            ];
+            let j = field.at(
+                (origin[0] as i64 + x as i64) as f64,
+                (origin[1] as i64 + y as i64) as f64,
+            );
+            let e = [
+                cx[0] - j[0][0],
+                cy[0] - j[0][1],
+                cx[1] - j[1][0],
+                cy[1] - j[1][1],
+            ];
+            let norm_j = j.iter().flatten().map(|v| v * v).sum::<f64>().sqrt();
+            let err = e.iter().map(|v| v * v).sum::<f64>().sqrt() / norm_j.max(1e-12);
+            let seam = (e[0] * e[0] + e[2] * e[2]).sqrt() > 1.0
+                || (e[1] * e[1] + e[3] * e[3]).sqrt() > 1.0;
+            total += 1;
+            if err <= tolerance {
+                errors_all += 1;
+            }
+            if seam {
+                seams += 1;
+            } else {
+                errors_ok.push(err);
+            }
+        }
+    }
+    let n_ok = errors_ok.len();
+    let within_ok = errors_ok.iter().filter(|&&e| e <= tolerance).count();
+    errors_ok.sort_by(|a, b| a.total_cmp(b));
+    Ok(JacobianReport {
+        pixels: total,
+        tolerance,
+        within_all: errors_all as f64 / total as f64,
+        within_non_seam: if n_ok > 0 {
+            within_ok as f64 / n_ok as f64
+        } else {
+            0.0
+        },
+        seam_fraction: seams as f64 / total as f64,
+        median_error_non_seam: if n_ok > 0 {
+            errors_ok[n_ok / 2]
+        } else {
+            f64::NAN
+        },
+    })
+}

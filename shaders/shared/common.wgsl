@@ -75,8 +75,16 @@ fn hash_pixel(p: vec2<i32>, level: u32, seed: u32) -> vec2<u32> {
     return vec2<u32>(hx, hy);
 }
 
+// c mod n in [0, n) (n > 0). Integer division is scalarized by CPU Vulkan drivers, so
+// the quotient comes from a float division and is corrected by one step each way: the
+// float quotient is off by less than 1 for |c| < 2^30, and the remainder is exact
+// integer arithmetic, hence the same value as the CPU mirror's `rem_euclid`.
 fn wrap(c: i32, n: i32) -> i32 {
-    return ((c % n) + n) % n;
+    let q = i32(floor(f32(c) / f32(n)));
+    var r = c - q * n;
+    r += select(0, n, r < 0);
+    r -= select(0, n, r >= n);
+    return r;
 }
 
 // In units of 2^-coord_frac exemplar pixels.

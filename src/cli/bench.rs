@@ -61,6 +61,11 @@ pub struct BenchArgs {
     /// Neighbourhood distance: projected, full or mixed
     #[arg(long, value_name = "MODE", default_value = "mixed", value_parser = super::parse_distance)]
     pub distance: texsyn::DistanceMode,
+
+    /// Anisometric synthesis along a field (same SPEC as `texsyn synth --field`; maps
+    /// from files are not accepted here since every size is benchmarked)
+    #[arg(long, value_name = "SPEC", value_parser = super::field::parse_field)]
+    pub field: Option<super::field::FieldSpec>,
 }
 
 struct Stats {
@@ -190,6 +195,10 @@ pub fn run(ui: &Ui, args: BenchArgs) -> CliResult<()> {
             passes: args.passes,
             finest_passes: args.finest_passes,
             distance: args.distance,
+            field: match &args.field {
+                Some(f) => Some(f.resolve([0, 0], w, h)?),
+                None => None,
+            },
             ..SynthParams::default()
         };
         let row = check_output_size(&ctx, w, h).and_then(|()| {

@@ -35,6 +35,18 @@ pub struct EvalArgs {
     /// the exemplar's seams, as the analysis does
     #[command(flatten)]
     pub tile: TileArgs,
+
+    /// The field the image was synthesized along (same SPEC as `texsyn synth --field`,
+    /// window 0,0): with --coords, reports how well the texture follows it ("jacobian":
+    /// fraction of pixels whose finite-difference Jacobian is within --tolerance of the
+    /// field, over all pixels and away from patch seams) instead of the verbatim figures
+    #[arg(long, value_name = "SPEC", value_parser = super::field::parse_field,
+          requires = "coords")]
+    pub field: Option<super::field::FieldSpec>,
+
+    /// Relative Frobenius tolerance of the Jacobian figures
+    #[arg(long, value_name = "T", default_value_t = 0.15)]
+    pub tolerance: f64,
 }
 
 pub fn run(ui: &Ui, args: EvalArgs) -> CliResult<()> {
@@ -50,7 +62,7 @@ pub fn run(ui: &Ui, args: EvalArgs) -> CliResult<()> {
     let coords = match &args.coords {
         None => None,
         Some(path) => {
-            let (w, h, c) = texsyn::image_io::load_coords_exr(path)?;
+            let (w, h, c) = texsyn::image_io::load_coords_exr_f32(path)?;
             if (w, h) != (output.width, output.height) {
                 return Err(fail(format!(
                     "{} is {w}x{h} but {} is {}x{}: give the coordinate map written together with the image",
@@ -67,16 +79,52 @@ pub fn run(ui: &Ui, args: EvalArgs) -> CliResult<()> {
         .tile
         .get()
         .unwrap_or_else(|| texsyn::analysis::detect_tileable(&exemplar));
+    let ex_size = [exemplar.width, exemplar.height];
     let exemplar = FloatImage::from_exemplar(&exemplar);
-    let map = coords.as_ref().map(|(w, h, c)| CoordMap {
-        coords: c,
-        width: *w,
-        height: *h,
-        tileable,
-    });
+    let jacobian = match (&args.field, &coords) {
+        (Some(spec), Some((w, h, c))) => {
+            if !(args.tolerance > 0.0 && args.tolerance.is_finite()) {
+                return Err(fail("--tolerance must be a positive number"));
+            }
+            let field = spec.resolve([0, 0], *w, *h)?;
+            Some(quality::jacobian_fidelity(
+                c,
+                *w,
+                *h,
+                ex_size,
+                [0, 0],
+                &field,
+                args.tolerance,
+            )?)
+        }
+        _ => None,
+    };
+    // Verbatim figures count exact integer copies: meaningless along a field.
+    let rounded: Option<Vec<[i32; 2]>> = match (&args.field, &coords) {
+        (None, Some((_, _, c))) => Some(
+            c.iter()
+                .map(|v| [v[0].round() as i32, v[1].round() as i32])
+                .collect(),
+        ),
+        _ => None,
+    };
+    let map = match (&rounded, &coords) {
+        (Some(r), Some((w, h, _))) => Some(CoordMap {
+            coords: r,
+            width: *w,
+            height: *h,
+            tileable,
+        }),
+        _ => None,
+    };
 
     let report = quality::evaluate(&exemplar, &output, quality::DEFAULT_RADIUS, map)?;
-    ui.out(report.to_json())
+    let mut json = report.to_json();
+    if let Some(j) = jacobian {
+        json.pop();
+        json.push_str(&format!(",\"jacobian\":{}}}", j.to_json()));
+    }
+    ui.out(json)
 }
 
 /// Any image the `image` crate reads, as floats.

@@ -8,10 +8,11 @@
 //! weights). Summed as in the isometric pass (`3 N_S(p;D)`).
 //!
 //! Candidates: `S[p+d] + O_i(S[p+d]) - h J d` for the 3x3 block and `i = 1..k`, the
-//! similarity offsets taken at the exemplar pixel nearest to `S[p+d]`. A candidate's
-//! distance is evaluated at its nearest exemplar pixel (projected: `qe`, full: `Et` at its
-//! four diagonals), which keeps the per-candidate cost of the isometric pass; the
-//! neighbourhood itself, computed once per pixel, is interpolated. Same tie rule and
+//! similarity offsets taken at the exemplar pixel nearest to `S[p+d]`. The projected
+//! distance (finest level by default) compares with `qe` bilinearly interpolated at the
+//! candidate (nearest-pixel scoring was measured to misregister fine detail by up to half
+//! a pixel and to break coherent patches); the full distance (coarse levels, smooth at
+//! their scale) reads `Et` at the four diagonals of the candidate's nearest pixel. Same tie rule and
 //! coherence bias as the isometric pass. With `J = I` every coordinate stays a multiple
 //! of 256 and the result is the isometric pass's times 256 (tested).
 
@@ -19,7 +20,8 @@ use super::common::{
     bilinear_taps, fit_coord, is_valid_fx, nearest_texel, phi_inv, read_coord_fx, region_index,
     scaled_jd, PassParams, COORD_FRAC,
 };
-use super::correct::{full_distance, project, projected_distance, LevelTables};
+use super::correct::{full_distance, project, LevelTables};
+use crate::analysis::QE_MAX;
 use crate::analysis::{DIAGONALS, DIM};
 
 #[inline]
@@ -29,14 +31,20 @@ fn ex_index(c: [i32; 2], p: &PassParams) -> usize {
 
 /// `Et` bilinearly interpolated at a fixed-point position (weights in 1/65536, rounded).
 pub fn et_bilinear(p: &PassParams, t: &LevelTables, u: [i32; 2]) -> [i32; DIM] {
+    table_bilinear(p, t.et, u)
+}
+
+/// A per-pixel 8D table (`Et` or `qe`) bilinearly interpolated at a fixed-point
+/// position (weights in 1/65536, rounded; exact at whole pixels).
+pub fn table_bilinear(p: &PassParams, table: &[[i16; DIM]], u: [i32; 2]) -> [i32; DIM] {
     let (i0, i1, f) = bilinear_taps(read_coord_fx(u, p), p);
-    let e00 = t.et[ex_index(i0, p)];
+    let e00 = table[ex_index(i0, p)];
     if f == [0, 0] {
         return e00.map(|v| v as i32);
     }
-    let e10 = t.et[ex_index([i1[0], i0[1]], p)];
-    let e01 = t.et[ex_index([i0[0], i1[1]], p)];
-    let e11 = t.et[ex_index(i1, p)];
+    let e10 = table[ex_index([i1[0], i0[1]], p)];
+    let e01 = table[ex_index([i0[0], i1[1]], p)];
+    let e11 = table[ex_index(i1, p)];
     let w00 = (256 - f[0]) * (256 - f[1]);
     let w10 = f[0] * (256 - f[1]);
     let w01 = (256 - f[0]) * f[1];
@@ -48,6 +56,17 @@ pub fn et_bilinear(p: &PassParams, t: &LevelTables, u: [i32; 2]) -> [i32; DIM] {
         out[c] = (v + 32768) >> 16;
     }
     out
+}
+
+/// [`super::correct::projected_distance`] against an interpolated exemplar side.
+#[inline]
+pub fn projected_distance_i32(ns: &[i32; DIM], qe: &[i32; DIM]) -> u32 {
+    let mut d = 0u32;
+    for c in 0..DIM {
+        let x = (ns[c] - qe[c]).clamp(-2 * QE_MAX, 2 * QE_MAX);
+        d += (x * x) as u32;
+    }
+    d
 }
 
 /// Per diagonal, the sum of the three anisometric predictions (`3 N_S(q;D)`).
@@ -93,11 +112,11 @@ pub fn correct_pixel(
     let full = p.full_distance != 0;
     let ns = if full { [0; DIM] } else { project(p, t, &sums) };
     let distance = |c: [i32; 2]| {
-        let n = nearest_texel(c, p);
         if full {
-            full_distance(p, t, &sums, n)
+            full_distance(p, t, &sums, nearest_texel(c, p))
         } else {
-            projected_distance(&ns, &t.qe[ex_index(n, p)])
+            let e = table_bilinear(p, t.qe, c);
+            projected_distance_i32(&ns, &e)
         }
     };
     let mut best = coords[base + region_index(q, p)];
