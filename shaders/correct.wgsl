@@ -21,9 +21,8 @@ fn prediction_sum(q: vec2<i32>, d: vec2<i32>, h: vec2<i32>, s_lo: ptr<function, 
 
 @compute @workgroup_size(8, 8, 1)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let start = (params.parity - params.origin) & vec2<i32>(1);
-    let q = start + 2 * vec2<i32>(gid.xy);
-    if (any(q >= params.size)) {
+    let q = subpass_pixel(vec2<i32>(gid.xy));
+    if (any(q < vec2<i32>(0))) {
         return;
     }
     let h = params.step;

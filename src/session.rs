@@ -174,6 +174,12 @@ impl SessionBuilder {
         self
     }
 
+    /// Output one period of a seamlessly tiling texture.
+    pub fn tileable_output(mut self, on: bool) -> Self {
+        self.params.tileable_output = on;
+        self
+    }
+
     /// Run on the caller's device instead of creating a headless one.
     pub fn context(mut self, context: GpuContext) -> Self {
         self.context = Some(context);

@@ -309,7 +309,11 @@ fn wrong_version() {
     // Files of the previous layout (version 1, without the appearance settings).
     expect_bad(
         b"TEXSYNA\0\x01\0\0\0",
-        &["version 1 is not supported", "expects 2", "re-run `texsyn analyze`"],
+        &[
+            "version 1 is not supported",
+            "expects 2",
+            "re-run `texsyn analyze`",
+        ],
         4096,
     );
 }

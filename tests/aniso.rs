@@ -41,8 +41,8 @@ fn synth(field: Field, size: u32, origin: [i32; 2]) -> texsyn::Synthesis {
 
 fn fidelity(field: &Field, size: u32) -> texsyn::quality::JacobianReport {
     let s = synth(field.clone(), size, [0, 0]);
-    let r = jacobian_fidelity(&s.coords_f32(), size, size, [128, 128], [0, 0], field, 0.15)
-        .unwrap();
+    let r =
+        jacobian_fidelity(&s.coords_f32(), size, size, [128, 128], [0, 0], field, 0.15).unwrap();
     eprintln!("{field:?}: {r:?}");
     r
 }
@@ -115,8 +115,16 @@ fn isometric_output_fails_a_rotated_field() {
         scale: [1.0, 1.0],
         shear: 0.0,
     };
-    let r = jacobian_fidelity(&iso.coords_f32(), 96, 96, [128, 128], [0, 0], &rotated, 0.15)
-        .unwrap();
+    let r = jacobian_fidelity(
+        &iso.coords_f32(),
+        96,
+        96,
+        [128, 128],
+        [0, 0],
+        &rotated,
+        0.15,
+    )
+    .unwrap();
     assert!(r.within_all < 0.05, "{r:?}");
 }
 

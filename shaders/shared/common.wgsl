@@ -29,7 +29,8 @@ struct Params {
     full_distance: u32,
     // Fractional bits of the coordinates: 0 (isometric) or 8 (anisometric).
     coord_frac: u32,
-    _pad1: u32,
+    // 1: the region is one period of a tileable output and wraps around.
+    periodic: u32,
     _pad2: u32,
 }
 
@@ -133,8 +134,17 @@ fn is_valid(c: vec2<i32>) -> bool {
 }
 
 // Index into `coords` of region pixel q (clamped into the region).
+// Periodic output (params.periodic != 0): the region is one period and wraps around
+// (neighbours are at most one pixel outside).
 fn region_index(q: vec2<i32>) -> u32 {
-    let c = clamp(q, vec2<i32>(0), params.size - vec2<i32>(1));
+    var c: vec2<i32>;
+    if (params.periodic != 0u) {
+        let n = params.size;
+        c = q + select(vec2<i32>(0), n, q < vec2<i32>(0));
+        c = c - select(vec2<i32>(0), n, c >= n);
+    } else {
+        c = clamp(q, vec2<i32>(0), params.size - vec2<i32>(1));
+    }
     return params.coord_base + u32(c.y * params.size.x + c.x);
 }
 
@@ -154,4 +164,28 @@ fn hi16(w: u32) -> i32 {
 fn unpack8(v: vec4<u32>, out_lo: ptr<function, vec4<i32>>, out_hi: ptr<function, vec4<i32>>) {
     *out_lo = vec4<i32>(lo16(v.x), hi16(v.x), lo16(v.y), hi16(v.y));
     *out_hi = vec4<i32>(lo16(v.z), hi16(v.z), lo16(v.w), hi16(v.w));
+}
+
+// Correction subpasses: along each axis a pixel's class is its absolute parity, except
+// that a periodic region of odd size >= 3 puts its last pixel in class 2 (it neighbours
+// pixel 0 across the wrap, which has the same parity). One subpass updates one class
+// pair, so no two updated pixels are neighbours. Returns the region coordinate this
+// invocation updates along one axis, or -1.
+fn subpass_axis(cls: i32, origin: i32, size: i32, g: i32) -> i32 {
+    let odd_wrap = params.periodic != 0u && (size & 1) == 1 && size >= 3;
+    if (cls == 2) {
+        return select(-1, size - 1, g == 0);
+    }
+    let v = ((cls - origin) & 1) + 2 * g;
+    if (v >= size || (odd_wrap && v == size - 1)) {
+        return -1;
+    }
+    return v;
+}
+
+fn subpass_pixel(g: vec2<i32>) -> vec2<i32> {
+    return vec2<i32>(
+        subpass_axis(params.parity.x, params.origin.x, params.size.x, g.x),
+        subpass_axis(params.parity.y, params.origin.y, params.size.y, g.y),
+    );
 }

@@ -17,8 +17,12 @@ use super::{fail, CliResult, TileArgs, Ui};
                   where the images are too small); histogram_emd: earth mover's distance \
                   between the colour histograms, per channel and mean; verbatim (with \
                   --coords): how much of the output is verbatim copy of the exemplar \
-                  (coherent neighbour pairs, largest copied region), else null. Lower \
-                  energy and EMD are better."
+                  (coherent neighbour pairs, largest copied region), else null; \
+                  wrap_seam_ratio: how visible the seam is when the image is tiled (mean \
+                  difference across its wrap-around edges over the mean difference between \
+                  neighbouring pixels; about 1 or below tiles seamlessly); jacobian (with \
+                  --field): how well the texture follows the field. Lower energy and EMD are \
+                  better."
 )]
 pub struct EvalArgs {
     /// The exemplar image (not an analysis file: the figures compare pixels)
@@ -119,12 +123,26 @@ pub fn run(ui: &Ui, args: EvalArgs) -> CliResult<()> {
     };
 
     let report = quality::evaluate(&exemplar, &output, quality::DEFAULT_RADIUS, map)?;
+    let wrap_seam = quality::wrap_seam_ratio(&output)?;
     let mut json = report.to_json();
+    json.pop();
+    json.push_str(&format!(
+        ",\"wrap_seam_ratio\":{}}}",
+        json_number(wrap_seam)
+    ));
     if let Some(j) = jacobian {
         json.pop();
         json.push_str(&format!(",\"jacobian\":{}}}", j.to_json()));
     }
     ui.out(json)
+}
+
+fn json_number(v: f64) -> String {
+    if v.is_finite() {
+        format!("{v}")
+    } else {
+        "null".into()
+    }
 }
 
 /// Any image the `image` crate reads, as floats.

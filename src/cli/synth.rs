@@ -86,6 +86,11 @@ pub struct SynthArgs {
           long_help = super::field::FIELD_HELP)]
     pub field: Option<super::field::FieldSpec>,
 
+    /// Make the output one period of a texture that tiles seamlessly (wraps around at its
+    /// edges); not combinable with --window
+    #[arg(long, conflicts_with = "window")]
+    pub tileable_output: bool,
+
     /// Origin of the output window in the infinite texture
     #[arg(long, value_name = "X,Y", default_value = "0,0", value_parser = parse_window, allow_hyphen_values = true)]
     pub window: [i32; 2],
@@ -214,6 +219,7 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
             Some(f) => Some(f.resolve(args.window, width, height)?),
             None => None,
         },
+        tileable_output: args.tileable_output,
     };
     // Validate the parameters before uploading anything.
     texsyn::passes::SynthPlan::new(&analysis, &params)?;

@@ -55,7 +55,9 @@ pub struct PassParams {
     /// Fractional bits of the coordinates: 0 (isometric, integer exemplar pixels) or
     /// [`COORD_FRAC`] (anisometric, continuous coordinates in fixed point).
     pub coord_frac: u32,
-    pub _pad: [u32; 2],
+    /// 1: the region is one period of a tileable output and wraps around.
+    pub periodic: u32,
+    pub _pad: u32,
 }
 
 /// Dynamic uniform offsets must be multiples of this (the WebGPU default limit).
@@ -160,11 +162,23 @@ pub fn is_valid(c: [i32; 2], p: &PassParams) -> bool {
             && c[1] <= p.ex_size[1] - 1 - p.margin)
 }
 
-/// Index of region pixel `q` (clamped into the region) in the level's coordinate array.
+/// Index of region pixel `q` (clamped into the region, or wrapped around it for a
+/// periodic output; neighbours are at most one pixel outside) in the level's array.
 #[inline]
 pub fn region_index(q: [i32; 2], p: &PassParams) -> usize {
-    let x = q[0].clamp(0, p.size[0] - 1);
-    let y = q[1].clamp(0, p.size[1] - 1);
+    let (x, y) = if p.periodic != 0 {
+        let w = |v: i32, n: i32| {
+            let v = if v < 0 { v + n } else { v };
+            if v >= n {
+                v - n
+            } else {
+                v
+            }
+        };
+        (w(q[0], p.size[0]), w(q[1], p.size[1]))
+    } else {
+        (q[0].clamp(0, p.size[0] - 1), q[1].clamp(0, p.size[1] - 1))
+    };
     (y * p.size[0] + x) as usize
 }
 
@@ -288,4 +302,35 @@ pub fn bilinear_taps(u: [i32; 2], p: &PassParams) -> ([i32; 2], [i32; 2], [i32; 
         ]
     };
     (i0, i1, f)
+}
+
+/// Region coordinates a correction subpass updates along one axis (mirror of
+/// `subpass_axis` in common.wgsl): the pixels of absolute parity `class`, except that a
+/// periodic region of odd size >= 3 puts its last pixel in class 2 (it neighbours pixel 0
+/// across the wrap, which has the same parity), so no two updated pixels are neighbours.
+pub fn subpass_axis(class: i32, origin: i32, size: i32, periodic: bool) -> Vec<i32> {
+    let odd_wrap = periodic && size & 1 == 1 && size >= 3;
+    if class == 2 {
+        return vec![size - 1];
+    }
+    let start = (class - origin) & 1;
+    (start..size)
+        .step_by(2)
+        .filter(|&v| !(odd_wrap && v == size - 1))
+        .collect()
+}
+
+/// Whether an axis of this size needs the extra class-2 subpasses.
+pub fn has_wrap_class(size: i32, periodic: bool) -> bool {
+    periodic && size & 1 == 1 && size >= 3
+}
+
+/// The pixels a correction subpass updates, row by row.
+pub fn subpass_pixels(p: &PassParams) -> Vec<[i32; 2]> {
+    let periodic = p.periodic != 0;
+    let xs = subpass_axis(p.parity[0], p.origin[0], p.size[0], periodic);
+    let ys = subpass_axis(p.parity[1], p.origin[1], p.size[1], periodic);
+    ys.iter()
+        .flat_map(|&y| xs.iter().map(move |&x| [x, y]))
+        .collect()
 }

@@ -161,18 +161,8 @@ pub fn correct_pixel(
 
 /// One subpass over the level's region.
 pub fn run(p: &PassParams, t: &LevelTables, coords: &mut [[i32; 2]], jac: &[[i32; 4]]) {
-    let start = [
-        (p.parity[0] - p.origin[0]) & 1,
-        (p.parity[1] - p.origin[1]) & 1,
-    ];
-    let mut y = start[1];
-    while y < p.size[1] {
-        let mut x = start[0];
-        while x < p.size[0] {
-            let c = correct_pixel(p, t, coords, jac, [x, y]);
-            coords[p.coord_base as usize + (y * p.size[0] + x) as usize] = c;
-            x += 2;
-        }
-        y += 2;
+    for [x, y] in super::common::subpass_pixels(p) {
+        let c = correct_pixel(p, t, coords, jac, [x, y]);
+        coords[p.coord_base as usize + (y * p.size[0] + x) as usize] = c;
     }
 }

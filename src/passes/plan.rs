@@ -38,6 +38,10 @@ pub struct SynthParams {
     /// With a field, coordinates are continuous (1/256 exemplar pixel) and the
     /// anisometric passes run.
     pub field: Option<Field>,
+    /// Synthesize one period of a texture that tiles seamlessly (`width` x `height`):
+    /// every level is a torus (period `ceil(size / 2^steps)`), neighbours wrap around.
+    /// The window origin must be 0.
+    pub tileable_output: bool,
 }
 
 /// Neighbourhood distance of the correction (see `passes/correct.rs`).
@@ -66,6 +70,7 @@ impl Default for SynthParams {
             coherence: 1.0,
             distance: DistanceMode::Mixed,
             field: None,
+            tileable_output: false,
         }
     }
 }
@@ -190,9 +195,18 @@ impl SynthPlan {
                 params.origin[1] + params.height as i32,
             ],
         );
+        if params.tileable_output && params.origin != [0, 0] {
+            return Err(Error::InvalidParameter(
+                "a tileable output is one period of the texture: its window origin must be 0,0"
+                    .into(),
+            ));
+        }
         let mut rev = Vec::with_capacity(n_levels as usize);
         for level in (0..n_levels).rev() {
-            let (rlo, rhi) = if level == 0 {
+            let (rlo, rhi) = if params.tileable_output {
+                // One period, no margin: neighbours wrap around instead.
+                ([0, 0], [hi[0].max(1), hi[1].max(1)])
+            } else if level == 0 {
                 (lo, hi)
             } else {
                 (
@@ -298,7 +312,8 @@ impl SynthPlan {
             } else {
                 0
             },
-            _pad: [0; 2],
+            periodic: self.params.tileable_output as u32,
+            _pad: 0,
         }
     }
 }
@@ -354,10 +369,16 @@ impl Dispatch {
             PassKind::Upsample | PassKind::UpsampleAniso | PassKind::Jitter => {
                 [p.size[0] as u32, p.size[1] as u32]
             }
-            PassKind::Correct | PassKind::CorrectAniso => [
-                (p.size[0] as u32).div_ceil(2),
-                (p.size[1] as u32).div_ceil(2),
-            ],
+            PassKind::Correct | PassKind::CorrectAniso => {
+                let axis = |class: i32, size: i32| {
+                    if class == 2 {
+                        1
+                    } else {
+                        (size as u32).div_ceil(2)
+                    }
+                };
+                [axis(p.parity[0], p.size[0]), axis(p.parity[1], p.size[1])]
+            }
             PassKind::Gather | PassKind::GatherAniso => {
                 [p.window_size[0] as u32, p.window_size[1] as u32]
             }
@@ -410,8 +431,23 @@ impl SynthPlan {
                 DistanceMode::Full => true,
                 DistanceMode::Mixed => !finest,
             };
+            // A periodic region of odd size needs a third class along that axis.
+            let periodic = self.params.tileable_output;
+            let sz = self.levels[level].size;
+            let wx = super::common::has_wrap_class(sz[0] as i32, periodic);
+            let wy = super::common::has_wrap_class(sz[1] as i32, periodic);
+            let mut order: Vec<[i32; 2]> = SUBPASS_ORDER.to_vec();
+            if wx {
+                order.extend([[2, 0], [2, 1]]);
+            }
+            if wy {
+                order.extend([[0, 2], [1, 2]]);
+            }
+            if wx && wy {
+                order.push([2, 2]);
+            }
             for _ in 0..passes {
-                for parity in SUBPASS_ORDER {
+                for &parity in &order {
                     let params = PassParams {
                         parity,
                         full_distance: full as u32,
