@@ -208,3 +208,92 @@ fn degenerate_fields() {
     };
     assert!(gpu.synthesize_to_host(ctx(), &zero).is_err());
 }
+
+#[test]
+fn material_maps_follow_the_coordinates_and_rotate_normals() {
+    use texsyn::gpu::synth::ExtraMap;
+    use texsyn::passes::plan::SynthPlan;
+    let a = gravel();
+    let gpu = GpuSynthesizer::new(ctx(), a.clone()).unwrap();
+    let n = (a.width * a.height) as usize;
+    // A "height" map with structure, and a constant normal map pointing along +x.
+    let height: Vec<[u8; 4]> = (0..n)
+        .map(|i| {
+            let v = ((i * 37) % 251) as u8;
+            [v, 255 - v, (i % 7) as u8 * 30, 255]
+        })
+        .collect();
+    let normal_x: Vec<[u8; 4]> = vec![[255, 128, 128, 255]; n];
+    let maps = [
+        ExtraMap {
+            pixels: height.clone(),
+            normal: false,
+        },
+        ExtraMap {
+            pixels: normal_x,
+            normal: true,
+        },
+    ];
+    for field in [
+        None,
+        Some(Field::Constant {
+            angle: std::f64::consts::FRAC_PI_2,
+            scale: [1.0, 1.0],
+            shear: 0.0,
+        }),
+        Some(Field::Swirl {
+            center: [20.0, 20.0],
+            radius: 30.0,
+            turns: 0.3,
+            scale: 1.0,
+        }),
+    ] {
+        let params = SynthParams {
+            width: 40,
+            height: 36,
+            seed: 3,
+            field: field.clone(),
+            ..Default::default()
+        };
+        let (s, out) = gpu.synthesize_with_maps(ctx(), &params, &maps).unwrap();
+        assert_eq!(s, gpu.synthesize_to_host(ctx(), &params).unwrap());
+        // CPU mirror of the map gather.
+        let plan = SynthPlan::new(&a, &params).unwrap();
+        let schedule = plan.schedule(&a);
+        let mut coords = vec![[0i32; 2]; plan.coord_count as usize];
+        let jac = plan.jacobians();
+        texsyn::passes::run_cpu(&a, &schedule, &mut coords, &jac);
+        let gp = schedule.last().unwrap().params;
+        for (m, map) in maps.iter().enumerate() {
+            let p = texsyn::passes::common::PassParams {
+                map_kind: map.normal as u32,
+                ..gp
+            };
+            let cpu = texsyn::passes::gather_map::run(&p, &coords, &jac, &map.pixels);
+            assert_eq!(out[m], cpu, "map {m}, field {field:?}");
+        }
+        if field.is_none() {
+            // Isometric: exactly the map at the synthesized pixel.
+            for (i, c) in s.coords.iter().enumerate() {
+                assert_eq!(out[0][i], height[(c[1] * a.width as i32 + c[0]) as usize]);
+            }
+        }
+        if let Some(Field::Constant { .. }) = field {
+            // Rotated by 90 degrees: exemplar +x normals point along screen +y.
+            for v in &out[1] {
+                assert!(v[0].abs_diff(128) <= 2 && v[1] >= 253, "{v:?}");
+            }
+        }
+    }
+    // A map of another size is an error.
+    let bad = [ExtraMap {
+        pixels: vec![[0; 4]; 10],
+        normal: false,
+    }];
+    let p = SynthParams {
+        width: 8,
+        height: 8,
+        ..Default::default()
+    };
+    assert!(gpu.synthesize_with_maps(ctx(), &p, &bad).is_err());
+}

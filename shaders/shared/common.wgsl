@@ -31,7 +31,8 @@ struct Params {
     coord_frac: u32,
     // 1: the region is one period of a tileable output and wraps around.
     periodic: u32,
-    _pad2: u32,
+    // Map gather: 1 for tangent-space normal maps.
+    map_kind: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: Params;

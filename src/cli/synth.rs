@@ -81,6 +81,13 @@ pub struct SynthArgs {
     #[command(flatten)]
     pub appearance: AppearanceArgs,
 
+    /// Material sets: resynthesize an exemplar-aligned map (normal, height, roughness...)
+    /// through the same coordinates: IN=OUT, repeatable. `normal:IN=OUT` (or an IN whose
+    /// file name contains "normal") marks a tangent-space normal map, whose x, y rotate
+    /// with the texture along --field; `plain:IN=OUT` forces a plain map
+    #[arg(long, value_name = "[normal:|plain:]IN=OUT", value_parser = parse_also)]
+    pub also: Vec<AlsoMap>,
+
     /// Anisometric synthesis along a Jacobian field (see the long help: --help)
     #[arg(long, value_name = "SPEC", value_parser = super::field::parse_field,
           long_help = super::field::FIELD_HELP)]
@@ -99,6 +106,41 @@ pub struct SynthArgs {
     /// (R = x, G = y)
     #[arg(long, value_name = "FILE.exr")]
     pub coords_out: Option<PathBuf>,
+}
+
+/// One `--also` map.
+#[derive(Clone, Debug)]
+pub struct AlsoMap {
+    pub input: PathBuf,
+    pub output: PathBuf,
+    pub normal: bool,
+}
+
+fn parse_also(s: &str) -> Result<AlsoMap, String> {
+    let (kind, rest) = if let Some(r) = s.strip_prefix("normal:") {
+        (Some(true), r)
+    } else if let Some(r) = s.strip_prefix("plain:") {
+        (Some(false), r)
+    } else {
+        (None, s)
+    };
+    let (input, output) = rest
+        .split_once('=')
+        .ok_or_else(|| format!("'{s}': expected IN=OUT, e.g. normal.png=out_normal.png"))?;
+    if input.is_empty() || output.is_empty() {
+        return Err(format!("'{s}': both IN and OUT must be given"));
+    }
+    let input = PathBuf::from(input);
+    let normal = kind.unwrap_or_else(|| {
+        input
+            .file_name()
+            .is_some_and(|n| n.to_string_lossy().to_lowercase().contains("normal"))
+    });
+    Ok(AlsoMap {
+        input,
+        output: output.into(),
+        normal,
+    })
 }
 
 /// What EXEMPLAR held: a finished analysis, or an image still to analyse.
@@ -228,25 +270,67 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
     let synthesizer = GpuSynthesizer::new(&ctx, Arc::new(analysis))?;
     let upload_time = t.elapsed();
 
+    // Material sets: every extra map is read (and checked) before any synthesis.
+    let mut extra = Vec::with_capacity(args.also.len());
+    for a in &args.also {
+        let ex = texsyn::image_io::load_exemplar(&a.input)?;
+        if (ex.width, ex.height) != (synthesizer.analysis().width, synthesizer.analysis().height) {
+            return Err(fail(format!(
+                "--also {}: {}x{} pixels, but the exemplar is {}x{}; extra maps must be aligned with it",
+                a.input.display(),
+                ex.width,
+                ex.height,
+                synthesizer.analysis().width,
+                synthesizer.analysis().height
+            )));
+        }
+        extra.push((
+            texsyn::gpu::synth::ExtraMap {
+                pixels: ex.colors,
+                normal: a.normal,
+            },
+            ex.channels,
+        ));
+    }
+
     let timings;
-    if let Some(coords_path) = &args.coords_out {
-        // Coordinates only come back through `synthesize_to_host`, which synthesizes and
-        // reads back in one go: report the two together.
+    if args.coords_out.is_some() || !extra.is_empty() {
+        // Coordinates and maps only come back through `synthesize_with_maps`, which
+        // synthesizes and reads back in one go: report the two together.
         let t = Instant::now();
-        let s = synthesizer
-            .synthesize_to_host(&ctx, &params)
+        let maps: Vec<_> = extra.iter().map(|(m, _)| m.clone()).collect();
+        let (s, map_pixels) = synthesizer
+            .synthesize_with_maps(&ctx, &params, &maps)
             .map_err(cli_hint)?;
         ctx.take_uncaptured_errors()?;
         let synth_readback = t.elapsed();
         let t = Instant::now();
-        let rgba8: Vec<u8> = s.colors.iter().flatten().copied().collect();
-        texsyn::image_io::save_coords_exr_f32_atomic(coords_path, width, height, &s.coords_f32())?;
-        if let Err(e) =
-            texsyn::image_io::save_image_atomic(&args.output, width, height, channels, &rgba8)
-        {
-            // Leave no half result behind: the coordinates without their image.
-            let _ = std::fs::remove_file(coords_path);
-            return Err(e.into());
+        // All or nothing: any failed write removes what this run already wrote.
+        let mut written: Vec<PathBuf> = Vec::new();
+        let result = (|| -> CliResult<()> {
+            if let Some(coords_path) = &args.coords_out {
+                texsyn::image_io::save_coords_exr_f32_atomic(
+                    coords_path,
+                    width,
+                    height,
+                    &s.coords_f32(),
+                )?;
+                written.push(coords_path.clone());
+            }
+            for (a, (pixels, (_, ch))) in args.also.iter().zip(map_pixels.iter().zip(&extra)) {
+                let bytes: Vec<u8> = pixels.iter().flatten().copied().collect();
+                texsyn::image_io::save_image_atomic(&a.output, width, height, *ch, &bytes)?;
+                written.push(a.output.clone());
+            }
+            let rgba8: Vec<u8> = s.colors.iter().flatten().copied().collect();
+            texsyn::image_io::save_image_atomic(&args.output, width, height, channels, &rgba8)?;
+            Ok(())
+        })();
+        if let Err(e) = result {
+            for p in &written {
+                let _ = std::fs::remove_file(p);
+            }
+            return Err(e);
         }
         timings = Timings::Combined {
             synth_readback,

@@ -69,6 +69,23 @@ impl GpuSynthesis {
     }
 }
 
+/// An extra map gathered through the synthesized coordinates (material sets).
+struct MapTarget<'a> {
+    colors: &'a wgpu::Buffer,
+    view: &'a wgpu::TextureView,
+    normal: bool,
+}
+
+/// An exemplar-aligned extra map (normal, height, roughness...) to resynthesize through
+/// the same coordinates as the colours.
+#[derive(Clone, Debug)]
+pub struct ExtraMap {
+    /// RGBA8, row-major, the exemplar's size.
+    pub pixels: Vec<[u8; 4]>,
+    /// Tangent-space normals (x, y in red, green): rotated with the texture along a field.
+    pub normal: bool,
+}
+
 /// The coordinate pyramid, kept between calls of the same or smaller size. Sharing it
 /// is safe even for several syntheses recorded into one encoder: they run in order.
 struct Scratch {
@@ -87,6 +104,7 @@ pub struct GpuSynthesizer {
     upsample_aniso: wgpu::ComputePipeline,
     correct_aniso: wgpu::ComputePipeline,
     gather_aniso: wgpu::ComputePipeline,
+    gather_map: wgpu::ComputePipeline,
     et: wgpu::Buffer,
     qe: wgpu::Buffer,
     offsets: wgpu::Buffer,
@@ -246,6 +264,7 @@ impl GpuSynthesizer {
                 upsample_aniso: pipeline(&shaders::UPSAMPLE_ANISO),
                 correct_aniso: pipeline(&shaders::CORRECT_ANISO),
                 gather_aniso: pipeline(&shaders::GATHER_ANISO),
+                gather_map: pipeline(&shaders::GATHER_MAP),
                 layout,
                 et,
                 qe,
@@ -345,17 +364,27 @@ impl GpuSynthesizer {
         schedule: &[Dispatch],
         target: &wgpu::TextureView,
         clear: bool,
+        maps: &[MapTarget<'_>],
     ) -> wgpu::Buffer {
         let guard = self.scratch_for(ctx, plan);
         let scratch = guard.as_ref().unwrap();
         if clear {
             encoder.clear_buffer(&scratch.coords, 0, None);
         }
-        let mut bytes = vec![0u8; schedule.len().max(1) * PARAMS_STRIDE as usize];
-        for (i, d) in schedule.iter().enumerate() {
+        // Map gathers run after the whole schedule with the gather's parameters.
+        let gather_params = schedule.last().map(|d| d.params).unwrap_or_default();
+        let entries: Vec<PassParams> = schedule
+            .iter()
+            .map(|d| d.params)
+            .chain(maps.iter().map(|m| PassParams {
+                map_kind: m.normal as u32,
+                ..gather_params
+            }))
+            .collect();
+        let mut bytes = vec![0u8; entries.len().max(1) * PARAMS_STRIDE as usize];
+        for (i, e) in entries.iter().enumerate() {
             let o = i * PARAMS_STRIDE as usize;
-            bytes[o..o + std::mem::size_of::<PassParams>()]
-                .copy_from_slice(bytemuck::bytes_of(&d.params));
+            bytes[o..o + std::mem::size_of::<PassParams>()].copy_from_slice(bytemuck::bytes_of(e));
         }
         // The Jacobian field, rasterized on the host for this plan's regions (a
         // placeholder for isometric synthesis). Per call, like the parameters.
@@ -380,56 +409,59 @@ impl GpuSynthesizer {
                 contents: &bytes,
                 usage: wgpu::BufferUsages::UNIFORM,
             });
-        let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("texsyn passes"),
-            layout: &self.layout,
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                        buffer: &params,
-                        offset: 0,
-                        size: wgpu::BufferSize::new(std::mem::size_of::<PassParams>() as u64),
-                    }),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: scratch.coords.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 2,
-                    resource: self.et.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 3,
-                    resource: self.qe.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 4,
-                    resource: self.offsets.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 5,
-                    resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                        buffer: &self.proj,
-                        offset: 0,
-                        size: wgpu::BufferSize::new(PROJ_BYTES),
-                    }),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 6,
-                    resource: self.colors.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 7,
-                    resource: wgpu::BindingResource::TextureView(target),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 8,
-                    resource: jac.as_entire_binding(),
-                },
-            ],
-        });
+        let make_bind_group = |colors: &wgpu::Buffer, target: &wgpu::TextureView| {
+            ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("texsyn passes"),
+                layout: &self.layout,
+                entries: &[
+                    wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                            buffer: &params,
+                            offset: 0,
+                            size: wgpu::BufferSize::new(std::mem::size_of::<PassParams>() as u64),
+                        }),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 1,
+                        resource: scratch.coords.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 2,
+                        resource: self.et.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 3,
+                        resource: self.qe.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 4,
+                        resource: self.offsets.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 5,
+                        resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                            buffer: &self.proj,
+                            offset: 0,
+                            size: wgpu::BufferSize::new(PROJ_BYTES),
+                        }),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 6,
+                        resource: colors.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 7,
+                        resource: wgpu::BindingResource::TextureView(target),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 8,
+                        resource: jac.as_entire_binding(),
+                    },
+                ],
+            })
+        };
+        let bind_group = make_bind_group(&self.colors, target);
         {
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("texsyn synthesis"),
@@ -458,6 +490,21 @@ impl GpuSynthesizer {
                         d.level as u32 * PROJ_BYTES as u32,
                     ],
                 );
+                pass.dispatch_workgroups(tx.div_ceil(8), ty.div_ceil(8), 1);
+            }
+            for (m, map) in maps.iter().enumerate() {
+                let group = make_bind_group(map.colors, map.view);
+                let level = plan.levels.len() - 1;
+                pass.set_pipeline(&self.gather_map);
+                pass.set_bind_group(
+                    0,
+                    &group,
+                    &[
+                        ((schedule.len() + m) as u64 * PARAMS_STRIDE) as u32,
+                        level as u32 * PROJ_BYTES as u32,
+                    ],
+                );
+                let [tx, ty] = [plan.params.width, plan.params.height];
                 pass.dispatch_workgroups(tx.div_ceil(8), ty.div_ceil(8), 1);
             }
         }
@@ -497,7 +544,7 @@ impl GpuSynthesizer {
         ctx.scoped(|| {
             let texture = self.output_texture(ctx, params.width, params.height);
             let view = texture.create_view(&Default::default());
-            self.record(ctx, encoder, &plan, &schedule, &view, false);
+            self.record(ctx, encoder, &plan, &schedule, &view, false, &[]);
             GpuSynthesis {
                 texture,
                 width: params.width,
@@ -517,36 +564,89 @@ impl GpuSynthesizer {
 
     /// Synthesizes and reads colours and coordinates back to the host.
     pub fn synthesize_to_host(&self, ctx: &GpuContext, params: &SynthParams) -> Result<Synthesis> {
+        self.synthesize_with_maps(ctx, params, &[]).map(|(s, _)| s)
+    }
+
+    /// Synthesizes, resynthesizes extra exemplar-aligned maps (material sets) through
+    /// the same coordinates, and reads everything back, in one submission. Returns the
+    /// synthesis and each map's RGBA8 pixels over the output window.
+    pub fn synthesize_with_maps(
+        &self,
+        ctx: &GpuContext,
+        params: &SynthParams,
+        maps: &[ExtraMap],
+    ) -> Result<(Synthesis, Vec<Vec<[u8; 4]>>)> {
+        let a = &self.analysis;
+        for (i, m) in maps.iter().enumerate() {
+            if m.pixels.len() != a.width as usize * a.height as usize {
+                return Err(Error::InvalidParameter(format!(
+                    "extra map {} has {} pixels; it must have the exemplar's size {}x{}",
+                    i + 1,
+                    m.pixels.len(),
+                    a.width,
+                    a.height
+                )));
+            }
+        }
         let plan = SynthPlan::new(&self.analysis, params)?;
         self.check_output(ctx, &plan)?;
         let schedule = plan.schedule(&self.analysis);
         let (w, h) = (params.width, params.height);
         let texture = ctx.scoped(|| self.output_texture(ctx, w, h))?;
         let view = texture.create_view(&Default::default());
+        let (map_buffers, map_textures) = ctx.scoped(|| {
+            let buffers: Vec<wgpu::Buffer> = maps
+                .iter()
+                .map(|m| {
+                    ctx.device
+                        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                            label: Some("texsyn extra map"),
+                            contents: bytemuck::cast_slice(&m.pixels),
+                            usage: wgpu::BufferUsages::STORAGE,
+                        })
+                })
+                .collect::<Vec<_>>();
+            let textures: Vec<wgpu::Texture> = maps
+                .iter()
+                .map(|_| self.output_texture(ctx, w, h))
+                .collect();
+            (buffers, textures)
+        })?;
+        let map_views: Vec<wgpu::TextureView> = map_textures
+            .iter()
+            .map(|t| t.create_view(&Default::default()))
+            .collect();
+        let targets: Vec<MapTarget> = maps
+            .iter()
+            .enumerate()
+            .map(|(i, m)| MapTarget {
+                colors: &map_buffers[i],
+                view: &map_views[i],
+                normal: m.normal,
+            })
+            .collect();
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
-        let coords =
-            ctx.scoped(|| self.record(ctx, &mut encoder, &plan, &schedule, &view, false))?;
+        let coords = ctx
+            .scoped(|| self.record(ctx, &mut encoder, &plan, &schedule, &view, false, &targets))?;
         let fin = plan.levels.last().unwrap();
         let fin_bytes = fin.size[0] as u64 * fin.size[1] as u64 * 8;
         let row = (w as u64 * 4).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT as u64);
-        let readback = ctx.scoped(|| {
-            let rb = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("texsyn readback"),
-                size: row * h as u64 + fin_bytes,
-                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            });
+        let image_bytes = row * h as u64;
+        let copy_image = |encoder: &mut wgpu::CommandEncoder,
+                          t: &wgpu::Texture,
+                          rb: &wgpu::Buffer,
+                          offset: u64| {
             encoder.copy_texture_to_buffer(
                 wgpu::TexelCopyTextureInfo {
-                    texture: &texture,
+                    texture: t,
                     mip_level: 0,
                     origin: wgpu::Origin3d::ZERO,
                     aspect: wgpu::TextureAspect::All,
                 },
                 wgpu::TexelCopyBufferInfo {
-                    buffer: &rb,
+                    buffer: rb,
                     layout: wgpu::TexelCopyBufferLayout {
-                        offset: 0,
+                        offset,
                         bytes_per_row: Some(row as u32),
                         rows_per_image: Some(h),
                     },
@@ -557,40 +657,66 @@ impl GpuSynthesizer {
                     depth_or_array_layers: 1,
                 },
             );
+        };
+        // Layout: colour rows, the finest level's coordinates, then each map's rows.
+        let maps_offset = (image_bytes + fin_bytes).next_multiple_of(256);
+        let readback = ctx.scoped(|| {
+            let rb = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("texsyn readback"),
+                size: maps_offset + image_bytes * maps.len() as u64,
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            copy_image(&mut encoder, &texture, &rb, 0);
             encoder.copy_buffer_to_buffer(
                 &coords,
                 fin.coord_base as u64 * 8,
                 &rb,
-                row * h as u64,
+                image_bytes,
                 fin_bytes,
             );
+            for (i, t) in map_textures.iter().enumerate() {
+                copy_image(&mut encoder, t, &rb, maps_offset + image_bytes * i as u64);
+            }
             ctx.queue.submit([encoder.finish()]);
             rb
         })?;
         let bytes = read_buffer(ctx, &readback)?;
-        let mut colors = Vec::with_capacity((w * h) as usize);
-        for y in 0..h as usize {
-            let r = &bytes[y * row as usize..y * row as usize + w as usize * 4];
-            colors.extend(r.chunks_exact(4).map(|c| [c[0], c[1], c[2], c[3]]));
-        }
-        let level_coords: &[[i32; 2]] = bytemuck::cast_slice(&bytes[(row * h as u64) as usize..]);
+        let rows = |offset: usize| {
+            let mut out = Vec::with_capacity((w * h) as usize);
+            for y in 0..h as usize {
+                let r =
+                    &bytes[offset + y * row as usize..offset + y * row as usize + w as usize * 4];
+                out.extend(r.chunks_exact(4).map(|c| [c[0], c[1], c[2], c[3]]));
+            }
+            out
+        };
+        let colors = rows(0);
+        let map_pixels: Vec<Vec<[u8; 4]>> = (0..maps.len())
+            .map(|i| rows((maps_offset + image_bytes * i as u64) as usize))
+            .collect();
+        let level_coords: &[[i32; 2]] =
+            bytemuck::cast_slice(&bytes[image_bytes as usize..(image_bytes + fin_bytes) as usize]);
         let mut window = Vec::with_capacity((w * h) as usize);
         for y in 0..h {
             let start =
                 ((y + plan.window_offset[1]) * fin.size[0] + plan.window_offset[0]) as usize;
             window.extend_from_slice(&level_coords[start..start + w as usize]);
         }
-        Ok(Synthesis {
-            width: w,
-            height: h,
-            coords: window,
-            colors,
-            coord_frac: if plan.params.field.is_some() {
-                crate::passes::common::COORD_FRAC
-            } else {
-                0
+        Ok((
+            Synthesis {
+                width: w,
+                height: h,
+                coords: window,
+                colors,
+                coord_frac: if plan.params.field.is_some() {
+                    crate::passes::common::COORD_FRAC
+                } else {
+                    0
+                },
             },
-        })
+            map_pixels,
+        ))
     }
 
     /// Test hook: runs only the first `count` dispatches of the schedule and returns the
@@ -611,7 +737,7 @@ impl GpuSynthesizer {
         let bytes = plan.coord_count * 8;
         let readback = ctx.scoped(|| {
             // Cleared first so levels not yet written read as zeros, as on the CPU.
-            let coords = self.record(ctx, &mut encoder, &plan, schedule, &view, true);
+            let coords = self.record(ctx, &mut encoder, &plan, schedule, &view, true, &[]);
             let rb = ctx.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("texsyn coords readback"),
                 size: bytes,

@@ -57,7 +57,9 @@ pub struct PassParams {
     pub coord_frac: u32,
     /// 1: the region is one period of a tileable output and wraps around.
     pub periodic: u32,
-    pub _pad: u32,
+    /// Map gather only: 1 if the map holds tangent-space normals (rotated with the
+    /// field), 0 otherwise.
+    pub map_kind: u32,
 }
 
 /// Dynamic uniform offsets must be multiples of this (the WebGPU default limit).

@@ -7,6 +7,7 @@ pub mod correct;
 pub mod correct_aniso;
 pub mod gather;
 pub mod gather_aniso;
+pub mod gather_map;
 pub mod jitter;
 pub mod plan;
 pub mod upsample;

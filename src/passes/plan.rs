@@ -313,7 +313,7 @@ impl SynthPlan {
                 0
             },
             periodic: self.params.tileable_output as u32,
-            _pad: 0,
+            map_kind: 0,
         }
     }
 }
