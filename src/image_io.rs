@@ -594,3 +594,62 @@ pub fn load_coords_exr(path: &Path) -> Result<(u32, u32, Vec<[i32; 2]>)> {
     }
     Ok((width, height, out))
 }
+
+/// Box-filters an exemplar down by an integer factor (cropping to a multiple of it):
+/// the analysed exemplar of magnification, whose colours come from the full one.
+/// Returns the small exemplar and the full one's colours cropped to `factor` times it.
+pub fn downsample_exemplar(ex: &Exemplar, factor: u32) -> Result<(Exemplar, Vec<[u8; 4]>)> {
+    let (w, h) = (ex.width / factor.max(1), ex.height / factor.max(1));
+    if factor == 0
+        || w < crate::analysis::MIN_EXEMPLAR_SIZE
+        || h < crate::analysis::MIN_EXEMPLAR_SIZE
+    {
+        return Err(Error::InvalidParameter(format!(
+            "magnifying {factor}x needs an exemplar of at least {} pixels a side (it is {}x{}); \
+             use a larger exemplar or a smaller factor",
+            crate::analysis::MIN_EXEMPLAR_SIZE * factor.max(1),
+            ex.width,
+            ex.height
+        )));
+    }
+    let c = ex.channels as usize;
+    let f = factor as usize;
+    let n = (f * f) as f32;
+    let mut values = Vec::with_capacity(w as usize * h as usize * c);
+    let mut colors = Vec::with_capacity(w as usize * h as usize);
+    for y in 0..h as usize {
+        for x in 0..w as usize {
+            let mut v = vec![0f32; c];
+            let mut col = [0u32; 4];
+            for dy in 0..f {
+                for dx in 0..f {
+                    let i = (y * f + dy) * ex.width as usize + x * f + dx;
+                    for k in 0..c {
+                        v[k] += ex.values[i * c + k];
+                    }
+                    for k in 0..4 {
+                        col[k] += ex.colors[i][k] as u32;
+                    }
+                }
+            }
+            values.extend(v.iter().map(|s| s / n));
+            let half = (f * f / 2) as u32;
+            colors.push(col.map(|s| ((s + half) / (f * f) as u32) as u8));
+        }
+    }
+    let mut hi = Vec::with_capacity(w as usize * h as usize * f * f);
+    for y in 0..h as usize * f {
+        let row = y * ex.width as usize;
+        hi.extend_from_slice(&ex.colors[row..row + w as usize * f]);
+    }
+    Ok((
+        Exemplar {
+            width: w,
+            height: h,
+            channels: ex.channels,
+            values,
+            colors,
+        },
+        hi,
+    ))
+}

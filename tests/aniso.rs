@@ -297,3 +297,65 @@ fn material_maps_follow_the_coordinates_and_rotate_normals() {
     };
     assert!(gpu.synthesize_with_maps(ctx(), &p, &bad).is_err());
 }
+
+#[test]
+fn magnification_matches_cpu() {
+    use texsyn::passes::plan::SynthPlan;
+    // A 64x64 crop of the 128 px gravel analysed at 32x32, magnified 2x and 4x.
+    let full = texsyn::image_io::load_exemplar(std::path::Path::new("assets/gravel.png")).unwrap();
+    for factor in [2u32, 4] {
+        let (small, hi) = texsyn::image_io::downsample_exemplar(&full, factor).unwrap();
+        assert_eq!((small.width, small.height), (128 / factor, 128 / factor));
+        let a = Arc::new(analyze(&small, &AnalysisOptions::default(), |_| {}).unwrap());
+        let gpu = GpuSynthesizer::new(ctx(), a.clone()).unwrap();
+        for field in [
+            None,
+            Some(Field::Constant {
+                angle: 0.7,
+                scale: [1.2, 0.9],
+                shear: 0.0,
+            }),
+        ] {
+            let params = SynthParams {
+                width: 20,
+                height: 14,
+                origin: [-3, 9],
+                seed: 2,
+                field: field.clone(),
+                ..Default::default()
+            };
+            let out = gpu
+                .synthesize_magnified(ctx(), &params, &hi, 128, 128, factor)
+                .unwrap();
+            assert_eq!((out.width, out.height), (20 * factor, 14 * factor));
+            let got = out.read_rgba8(ctx()).unwrap();
+            let plan = SynthPlan::new(&a, &params).unwrap();
+            let schedule = plan.schedule(&a);
+            let mut coords = vec![[0i32; 2]; plan.coord_count as usize];
+            let jac = plan.jacobians();
+            texsyn::passes::run_cpu(&a, &schedule, &mut coords, &jac);
+            let p = texsyn::passes::common::PassParams {
+                magnify: factor,
+                hi_size: [128, 128],
+                ..schedule.last().unwrap().params
+            };
+            let cpu: Vec<u8> = texsyn::passes::magnify::run(&p, &coords, &jac, &hi)
+                .into_iter()
+                .flatten()
+                .collect();
+            assert_eq!(got, cpu, "factor {factor}, field {field:?}");
+        }
+        // Wrong sizes and factors are errors.
+        let p = SynthParams {
+            width: 8,
+            height: 8,
+            ..Default::default()
+        };
+        assert!(gpu
+            .synthesize_magnified(ctx(), &p, &hi, 64, 64, factor)
+            .is_err());
+        assert!(gpu
+            .synthesize_magnified(ctx(), &p, &hi, 128, 128, 3)
+            .is_err());
+    }
+}

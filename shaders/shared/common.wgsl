@@ -33,6 +33,10 @@ struct Params {
     periodic: u32,
     // Map gather: 1 for tangent-space normal maps.
     map_kind: u32,
+    // Magnify pass: high-resolution exemplar size and factor.
+    hi_size: vec2<i32>,
+    magnify: u32,
+    _pad3: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: Params;

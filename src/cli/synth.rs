@@ -81,6 +81,12 @@ pub struct SynthArgs {
     #[command(flatten)]
     pub appearance: AppearanceArgs,
 
+    /// Magnification: analyse the exemplar downsampled F times, synthesize --size, and
+    /// render the output F times larger (2, 4 or 8) with the full-resolution exemplar's
+    /// colours. Needs an exemplar image (not an analysis file)
+    #[arg(long, value_name = "F", value_parser = parse_magnify)]
+    pub magnify: Option<u32>,
+
     /// Material sets: resynthesize an exemplar-aligned map (normal, height, roughness...)
     /// through the same coordinates: IN=OUT, repeatable. `normal:IN=OUT` (or an IN whose
     /// file name contains "normal") marks a tangent-space normal map, whose x, y rotate
@@ -114,6 +120,13 @@ pub struct AlsoMap {
     pub input: PathBuf,
     pub output: PathBuf,
     pub normal: bool,
+}
+
+fn parse_magnify(s: &str) -> Result<u32, String> {
+    match s {
+        "2" | "4" | "8" => Ok(s.parse().unwrap()),
+        _ => Err(format!("'{s}': the magnification factor must be 2, 4 or 8")),
+    }
 }
 
 fn parse_also(s: &str) -> Result<AlsoMap, String> {
@@ -206,8 +219,29 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
     // Read the input first (cheap), then check the size against the device, and only
     // then analyse (expensive).
     let t = Instant::now();
-    let source = read_source(&args.exemplar, args.k, args.tile.get())?;
+    let mut source = read_source(&args.exemplar, args.k, args.tile.get())?;
     let read_time = t.elapsed();
+    // Magnification: analyse a downsampled copy, keep the full colours.
+    let mut hi_res = None;
+    if let Some(f) = args.magnify {
+        match source {
+            Source::Analysis(_) => {
+                return Err(fail(
+                    "--magnify needs the exemplar image (its full-resolution colours), not an analysis file",
+                ))
+            }
+            Source::Image(ex) => {
+                let (small, hi) = texsyn::image_io::downsample_exemplar(&ex, f)?;
+                hi_res = Some((hi, small.width * f, small.height * f, f));
+                source = Source::Image(small);
+            }
+        }
+        if args.coords_out.is_some() || !args.also.is_empty() {
+            return Err(fail(
+                "--magnify cannot be combined with --coords-out or --also (yet)",
+            ));
+        }
+    }
 
     let t = Instant::now();
     let ctx = GpuContext::headless()?;
@@ -294,7 +328,24 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
     }
 
     let timings;
-    if args.coords_out.is_some() || !extra.is_empty() {
+    if let Some((hi, hw, hh, f)) = &hi_res {
+        let t = Instant::now();
+        let gpu = synthesizer
+            .synthesize_magnified(&ctx, &params, hi, *hw, *hh, *f)
+            .map_err(cli_hint)?;
+        ctx.take_uncaptured_errors()?;
+        let synth = t.elapsed();
+        let t = Instant::now();
+        let rgba8 = gpu.read_rgba8(&ctx)?;
+        let readback = t.elapsed();
+        let t = Instant::now();
+        texsyn::image_io::save_image_atomic(&args.output, gpu.width, gpu.height, channels, &rgba8)?;
+        timings = Timings::Separate {
+            synth,
+            readback,
+            write: t.elapsed(),
+        };
+    } else if args.coords_out.is_some() || !extra.is_empty() {
         // Coordinates and maps only come back through `synthesize_with_maps`, which
         // synthesizes and reads back in one go: report the two together.
         let t = Instant::now();

@@ -74,6 +74,9 @@ struct MapTarget<'a> {
     colors: &'a wgpu::Buffer,
     view: &'a wgpu::TextureView,
     normal: bool,
+    /// > 1: the magnify pass with a high-resolution exemplar of `hi_size`.
+    magnify: u32,
+    hi_size: [i32; 2],
 }
 
 /// An exemplar-aligned extra map (normal, height, roughness...) to resynthesize through
@@ -105,6 +108,7 @@ pub struct GpuSynthesizer {
     correct_aniso: wgpu::ComputePipeline,
     gather_aniso: wgpu::ComputePipeline,
     gather_map: wgpu::ComputePipeline,
+    magnify: wgpu::ComputePipeline,
     et: wgpu::Buffer,
     qe: wgpu::Buffer,
     offsets: wgpu::Buffer,
@@ -265,6 +269,7 @@ impl GpuSynthesizer {
                 correct_aniso: pipeline(&shaders::CORRECT_ANISO),
                 gather_aniso: pipeline(&shaders::GATHER_ANISO),
                 gather_map: pipeline(&shaders::GATHER_MAP),
+                magnify: pipeline(&shaders::MAGNIFY),
                 layout,
                 et,
                 qe,
@@ -378,6 +383,8 @@ impl GpuSynthesizer {
             .map(|d| d.params)
             .chain(maps.iter().map(|m| PassParams {
                 map_kind: m.normal as u32,
+                magnify: m.magnify.max(1),
+                hi_size: m.hi_size,
                 ..gather_params
             }))
             .collect();
@@ -495,7 +502,11 @@ impl GpuSynthesizer {
             for (m, map) in maps.iter().enumerate() {
                 let group = make_bind_group(map.colors, map.view);
                 let level = plan.levels.len() - 1;
-                pass.set_pipeline(&self.gather_map);
+                pass.set_pipeline(if map.magnify > 1 {
+                    &self.magnify
+                } else {
+                    &self.gather_map
+                });
                 pass.set_bind_group(
                     0,
                     &group,
@@ -504,7 +515,8 @@ impl GpuSynthesizer {
                         level as u32 * PROJ_BYTES as u32,
                     ],
                 );
-                let [tx, ty] = [plan.params.width, plan.params.height];
+                let f = map.magnify.max(1);
+                let [tx, ty] = [plan.params.width * f, plan.params.height * f];
                 pass.dispatch_workgroups(tx.div_ceil(8), ty.div_ceil(8), 1);
             }
         }
@@ -623,6 +635,8 @@ impl GpuSynthesizer {
                 colors: &map_buffers[i],
                 view: &map_views[i],
                 normal: m.normal,
+                magnify: 1,
+                hi_size: [0, 0],
             })
             .collect();
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
@@ -717,6 +731,92 @@ impl GpuSynthesizer {
             },
             map_pixels,
         ))
+    }
+
+    /// Synthesizes the window and renders it magnified `factor` (2, 4 or 8) times from
+    /// `hi`, the exemplar at `factor` times the analysed resolution (RGBA8 rows of
+    /// `hi_width` x `hi_height` = factor x the analysis size). Returns the magnified
+    /// texture (`factor * width` x `factor * height`), on the GPU.
+    pub fn synthesize_magnified(
+        &self,
+        ctx: &GpuContext,
+        params: &SynthParams,
+        hi: &[[u8; 4]],
+        hi_width: u32,
+        hi_height: u32,
+        factor: u32,
+    ) -> Result<GpuSynthesis> {
+        let a = &self.analysis;
+        if ![2, 4, 8].contains(&factor) {
+            return Err(Error::InvalidParameter(format!(
+                "magnification {factor}: use 2, 4 or 8"
+            )));
+        }
+        if (hi_width, hi_height) != (a.width * factor, a.height * factor)
+            || hi.len() != hi_width as usize * hi_height as usize
+        {
+            return Err(Error::InvalidParameter(format!(
+                "the high-resolution exemplar is {hi_width}x{hi_height} ({} pixels given); \
+                 magnifying {factor}x needs {}x{}",
+                hi.len(),
+                a.width * factor,
+                a.height * factor
+            )));
+        }
+        let plan = SynthPlan::new(a, params)?;
+        self.check_output(ctx, &plan)?;
+        let (w, h) = (params.width * factor, params.height * factor);
+        let max_dim = ctx.limits().max_texture_dimension_2d;
+        if w > max_dim || h > max_dim {
+            return Err(too_large(
+                "magnified output",
+                w,
+                h,
+                format!("at most {max_dim} pixels a side"),
+                "magnify less, or synthesize smaller windows and assemble them",
+            ));
+        }
+        let schedule = plan.schedule(a);
+        ctx.scoped(|| {
+            let scratch = self.output_texture(ctx, params.width, params.height);
+            let scratch_view = scratch.create_view(&Default::default());
+            let big = self.output_texture(ctx, w, h);
+            let big_view = big.create_view(&Default::default());
+            let hi_buffer = ctx
+                .device
+                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("texsyn high-resolution exemplar"),
+                    contents: bytemuck::cast_slice(hi),
+                    usage: wgpu::BufferUsages::STORAGE,
+                });
+            let target = MapTarget {
+                colors: &hi_buffer,
+                view: &big_view,
+                normal: false,
+                magnify: factor,
+                hi_size: [hi_width as i32, hi_height as i32],
+            };
+            let mut encoder = ctx.device.create_command_encoder(&Default::default());
+            self.record(
+                ctx,
+                &mut encoder,
+                &plan,
+                &schedule,
+                &scratch_view,
+                false,
+                &[target],
+            );
+            ctx.queue.submit([encoder.finish()]);
+            GpuSynthesis {
+                texture: big,
+                width: w,
+                height: h,
+            }
+        })
+        .and_then(|out| {
+            wait(ctx)?;
+            Ok(out)
+        })
     }
 
     /// Test hook: runs only the first `count` dispatches of the schedule and returns the

@@ -60,6 +60,10 @@ pub struct PassParams {
     /// Map gather only: 1 if the map holds tangent-space normals (rotated with the
     /// field), 0 otherwise.
     pub map_kind: u32,
+    /// Magnify pass only: size of the high-resolution exemplar, and the factor.
+    pub hi_size: [i32; 2],
+    pub magnify: u32,
+    pub _pad: u32,
 }
 
 /// Dynamic uniform offsets must be multiples of this (the WebGPU default limit).

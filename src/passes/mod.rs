@@ -9,6 +9,7 @@ pub mod gather;
 pub mod gather_aniso;
 pub mod gather_map;
 pub mod jitter;
+pub mod magnify;
 pub mod plan;
 pub mod upsample;
 pub mod upsample_aniso;

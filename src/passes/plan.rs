@@ -314,6 +314,9 @@ impl SynthPlan {
             },
             periodic: self.params.tileable_output as u32,
             map_kind: 0,
+            hi_size: [0, 0],
+            magnify: 1,
+            _pad: 0,
         }
     }
 }
