@@ -12,7 +12,7 @@
 //!    distance transform ([`squared_distance_transform`], Felzenszwalb & Huttenlocher
 //!    2012), wrapping around for tileable exemplars.
 //! 2. `s = clamp(d, -dmax, dmax) / dmax` (`dmax` = [`super::AnalysisOptions::feature_clamp`],
-//!    default [`DEFAULT_FEATURE_CLAMP`] = 8 px at the finest level). Clamping keeps the
+//!    default [`DEFAULT_FEATURE_CLAMP`] = 4 px at the finest level). Clamping keeps the
 //!    medial-axis ridges of large regions out of the channel (paper: "clamping the
 //!    distance magnitude to some maximum helps suppress singularities along the feature
 //!    medial axis").
@@ -36,7 +36,7 @@ pub const DEFAULT_FEATURE_WEIGHT: f32 = 1.0;
 /// Largest accepted feature weight (beyond it colour no longer matters at all).
 pub const MAX_FEATURE_WEIGHT: f32 = 100.0;
 /// Default clamp `dmax` of the signed distance, in exemplar pixels.
-pub const DEFAULT_FEATURE_CLAMP: f32 = 8.0;
+pub const DEFAULT_FEATURE_CLAMP: f32 = 4.0;
 /// Accepted range of the clamp: below 0.5 every pixel would be clamped (the smallest
 /// |distance| is 0.5).
 pub const FEATURE_CLAMP_RANGE: std::ops::RangeInclusive<f32> = 0.5..=4096.0;

@@ -114,7 +114,7 @@ pub struct AnalysisOptions {
     /// Weight `w` of the feature channel, in `[0, 100]`: at 1 (default) the channel has
     /// as much variance as all colour channels together. Ignored without a mask.
     pub feature_weight: f32,
-    /// Clamp `dmax` of the signed distance, in exemplar pixels (default 8).
+    /// Clamp `dmax` of the signed distance, in exemplar pixels (default 4).
     pub feature_clamp: f32,
 }
 

@@ -184,7 +184,7 @@ impl FieldSpec {
             FieldSpec::Perspective(v) => {
                 let bottom = origin[1] as f64 + height as f64 - 1.0;
                 let (horizon, scale) = if v.is_empty() {
-                    (origin[1] as f64 - height as f64 / 4.0, 1.5)
+                    (origin[1] as f64 - height as f64 / 2.0, 1.5)
                 } else {
                     (v[0], v[1])
                 };
