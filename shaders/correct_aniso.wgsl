@@ -18,9 +18,10 @@ fn table_at(table: u32, c: vec2<i32>, lo: ptr<function, vec4<i32>>, hi: ptr<func
 // Table 0 (Et) or 1 (qe) bilinearly interpolated at a fixed-point position, added to
 // (acc_lo, acc_hi).
 fn add_bilinear(table: u32, u: vec2<i32>, acc_lo: ptr<function, vec4<i32>>, acc_hi: ptr<function, vec4<i32>>) {
-    var i0: vec2<i32>;
-    var i1: vec2<i32>;
-    let f = bilinear_taps(read_coord_fx(u), &i0, &i1);
+    let taps = bilinear_taps(read_coord_fx(u));
+    let i0 = taps.i0;
+    let i1 = taps.i1;
+    let f = taps.f;
     var lo: vec4<i32>;
     var hi: vec4<i32>;
     table_at(table, i0, &lo, &hi);

@@ -16,9 +16,10 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let q = p + params.window_offset;
     let c = coords[params.coord_base + u32(q.y * params.size.x + q.x)];
-    var i0: vec2<i32>;
-    var i1: vec2<i32>;
-    let f = bilinear_taps(read_coord_fx(c), &i0, &i1);
+    let taps = bilinear_taps(read_coord_fx(c));
+    let i0 = taps.i0;
+    let i1 = taps.i1;
+    let f = taps.f;
     let g = vec2<i32>(256) - f;
     let v = g.x * g.y * color_u(i0) + f.x * g.y * color_u(vec2<i32>(i1.x, i0.y))
         + g.x * f.y * color_u(vec2<i32>(i0.x, i1.y)) + f.x * f.y * color_u(i1);

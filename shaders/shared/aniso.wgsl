@@ -46,14 +46,22 @@ fn nearest_texel(c: vec2<i32>) -> vec2<i32> {
     return min(r, params.ex_size - vec2<i32>(1));
 }
 
-// Bilinear taps of a wrapped/clamped position: i0, i1 and the fractions (0..255).
-fn bilinear_taps(u: vec2<i32>, i0: ptr<function, vec2<i32>>, i1: ptr<function, vec2<i32>>) -> vec2<i32> {
+// Bilinear taps of a wrapped/clamped position: the two texel corners and the fractions
+// (0..255). Returned by value: CPU drivers put locals written through pointers into
+// scratch memory, which they allocate and clear on every dispatch.
+struct Taps {
+    i0: vec2<i32>,
+    i1: vec2<i32>,
+    f: vec2<i32>,
+}
+
+fn bilinear_taps(u: vec2<i32>) -> Taps {
     let a = u >> vec2<u32>(COORD_FRAC);
-    *i0 = a;
+    var b: vec2<i32>;
     if (params.tileable != 0) {
-        *i1 = select(a + vec2<i32>(1), vec2<i32>(0), a + vec2<i32>(1) == params.ex_size);
+        b = select(a + vec2<i32>(1), vec2<i32>(0), a + vec2<i32>(1) == params.ex_size);
     } else {
-        *i1 = min(a + vec2<i32>(1), params.ex_size - vec2<i32>(1));
+        b = min(a + vec2<i32>(1), params.ex_size - vec2<i32>(1));
     }
-    return u & vec2<i32>((1 << COORD_FRAC) - 1);
+    return Taps(a, b, u & vec2<i32>((1 << COORD_FRAC) - 1));
 }

@@ -24,6 +24,14 @@
 //!
 //! A mask that is all feature or all background gives a constant `s`; its channel is then
 //! zero (no information, and nothing is divided by a zero deviation).
+//!
+//! The defaults were chosen by measurement (512x512 outputs, 3 seeds, masks thresholded
+//! from the exemplars' dark mortar/cracks): the channel trades colour fidelity for
+//! structure. On stone walls it cuts broken-up mortar (feature pixels in fragments under
+//! 20 px: 28% without the channel, 19% at `w = 1, dmax = 4`, 14% at `w = 4`; exemplar
+//! 10%) while texture energy rises 5-20%; where the features are already obvious in colour
+//! (brick mortar) it changes little. `dmax = 4` kept nearly all of the structural gain
+//! of `dmax = 8` at about half its energy cost; `dmax = 2` kept less of it.
 
 use std::path::{Path, PathBuf};
 
@@ -297,7 +305,11 @@ pub fn feature_channel(
     if var <= 1e-12 {
         return vec![0.0; n];
     }
-    let sigma = if colour_var > 1e-12 { colour_var.sqrt() } else { 1.0 };
+    let sigma = if colour_var > 1e-12 {
+        colour_var.sqrt()
+    } else {
+        1.0
+    };
     let scale = weight as f64 * sigma / var.sqrt();
     s.iter().map(|v| ((v - mean) * scale) as f32).collect()
 }
@@ -335,7 +347,13 @@ mod tests {
     #[test]
     fn edt_matches_brute_force() {
         let mut state = 12345u32;
-        for (w, h, density) in [(1, 1, 2), (7, 5, 3), (13, 17, 10), (16, 9, 40), (20, 20, 200)] {
+        for (w, h, density) in [
+            (1, 1, 2),
+            (7, 5, 3),
+            (13, 17, 10),
+            (16, 9, 40),
+            (20, 20, 200),
+        ] {
             for wrap in [false, true] {
                 let sites: Vec<bool> = (0..w * h)
                     .map(|_| {
