@@ -21,6 +21,7 @@ fn prediction_sum(q: vec2<i32>, d: vec2<i32>, h: vec2<i32>, s_lo: ptr<function, 
 
 @compute @workgroup_size(8, 8, 1)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    opaque = i32(gid.z);
     let q = subpass_pixel(vec2<i32>(gid.xy));
     if (any(q < vec2<i32>(0))) {
         return;
@@ -38,7 +39,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     prediction_sum(q, vec2<i32>(1, -1), h, &s1l, &s1h);
     prediction_sum(q, vec2<i32>(-1, 1), h, &s2l, &s2h);
     prediction_sum(q, vec2<i32>(-1, -1), h, &s3l, &s3h);
-    let full = params.full_distance != 0u;
+    let full = (params.full_distance | u32(opaque)) != 0u;
     var ns_lo = vec4<i32>(0);
     var ns_hi = vec4<i32>(0);
     if (!full) {
@@ -69,7 +70,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             let dd = vec2<i32>(dx, dy);
             let s = coords[region_index(q + dd)];
             let obase = params.off_base + ex_index(s) * km1;
-            for (var i = 0; i < params.k; i++) {
+            for (var i = 0; i < (params.k | opaque); i++) {
                 var o = vec2<i32>(0);
                 if (i > 0) {
                     let w = offsets[obase + u32(i - 1)];

@@ -6,80 +6,79 @@
 #include "shared/aniso.wgsl"
 #include "shared/distance.wgsl"
 
-// Texel of table 0 (Et) or 1 (qe).
-fn table_at(table: u32, c: vec2<i32>, lo: ptr<function, vec4<i32>>, hi: ptr<function, vec4<i32>>) {
-    if (table == 0u) {
-        unpack8(et[params.et_base + ex_index(c)], lo, hi);
-    } else {
-        unpack8(qe[params.et_base + ex_index(c)], lo, hi);
-    }
+// 8 i16 values (an Et or qe texel, or sums of them) as two vec4<i32>. Helpers return it
+// by value: passing pointers through nested calls made lavapipe put the variables in
+// scratch memory, allocated on every dispatch (measured ~10 ms per dispatch).
+struct Vec8 {
+    lo: vec4<i32>,
+    hi: vec4<i32>,
 }
 
-// Table 0 (Et) or 1 (qe) bilinearly interpolated at a fixed-point position, added to
-// (acc_lo, acc_hi).
-fn add_bilinear(table: u32, u: vec2<i32>, acc_lo: ptr<function, vec4<i32>>, acc_hi: ptr<function, vec4<i32>>) {
+fn unpack_vec8(v: vec4<u32>) -> Vec8 {
+    return Vec8(
+        vec4<i32>(lo16(v.x), hi16(v.x), lo16(v.y), hi16(v.y)),
+        vec4<i32>(lo16(v.z), hi16(v.z), lo16(v.w), hi16(v.w)),
+    );
+}
+
+// Texel of table 0 (Et) or 1 (qe).
+fn table_at(table: u32, c: vec2<i32>) -> Vec8 {
+    let i = params.et_base + ex_index(c);
+    return unpack_vec8(select(qe[i], et[i], table == 0u));
+}
+
+// Table 0 (Et) or 1 (qe) bilinearly interpolated at a fixed-point position (weights
+// in 1/65536, rounded; exact at whole pixels).
+fn bilinear(table: u32, u: vec2<i32>) -> Vec8 {
     let taps = bilinear_taps(read_coord_fx(u));
     let i0 = taps.i0;
     let i1 = taps.i1;
     let f = taps.f;
-    var lo: vec4<i32>;
-    var hi: vec4<i32>;
-    table_at(table, i0, &lo, &hi);
+    let e00 = table_at(table, i0);
     if (all(f == vec2<i32>(0))) {
-        *acc_lo += lo;
-        *acc_hi += hi;
-        return;
+        return e00;
     }
     let g = vec2<i32>(256) - f;
-    var s_lo = g.x * g.y * lo;
-    var s_hi = g.x * g.y * hi;
-    table_at(table, vec2<i32>(i1.x, i0.y), &lo, &hi);
-    s_lo += f.x * g.y * lo;
-    s_hi += f.x * g.y * hi;
-    table_at(table, vec2<i32>(i0.x, i1.y), &lo, &hi);
-    s_lo += g.x * f.y * lo;
-    s_hi += g.x * f.y * hi;
-    table_at(table, i1, &lo, &hi);
-    s_lo += f.x * f.y * lo;
-    s_hi += f.x * f.y * hi;
+    let e10 = table_at(table, vec2<i32>(i1.x, i0.y));
+    let e01 = table_at(table, vec2<i32>(i0.x, i1.y));
+    let e11 = table_at(table, i1);
+    let w = vec4<i32>(g.x * g.y, f.x * g.y, g.x * f.y, f.x * f.y);
     let r = vec4<i32>(32768);
-    *acc_lo += (s_lo + r) >> vec4<u32>(16u);
-    *acc_hi += (s_hi + r) >> vec4<u32>(16u);
+    return Vec8(
+        (w.x * e00.lo + w.y * e10.lo + w.z * e01.lo + w.w * e11.lo + r) >> vec4<u32>(16u),
+        (w.x * e00.hi + w.y * e10.hi + w.z * e01.hi + w.w * e11.hi + r) >> vec4<u32>(16u),
+    );
 }
 
 // Projected distance against qe interpolated at candidate c.
 fn projected_distance_at(ns_lo: vec4<i32>, ns_hi: vec4<i32>, c: vec2<i32>) -> u32 {
-    var e_lo = vec4<i32>(0);
-    var e_hi = vec4<i32>(0);
-    add_bilinear(1u, c, &e_lo, &e_hi);
+    let e = bilinear(1u, c);
     let m = vec4<i32>(2 * QE_MAX);
-    let a = vec4<u32>(clamp(ns_lo - e_lo, -m, m));
-    let b = vec4<u32>(clamp(ns_hi - e_hi, -m, m));
+    let a = vec4<u32>(clamp(ns_lo - e.lo, -m, m));
+    let b = vec4<u32>(clamp(ns_hi - e.hi, -m, m));
     let sq = a * a + b * b;
     return sq.x + sq.y + sq.z + sq.w;
 }
 
 // One prediction of Et at q + D from the neighbour in the direction of J^-1 D'.
-fn predict(q: vec2<i32>, j: vec4<i32>, d: vec2<i32>, dp: vec2<i32>, acc_lo: ptr<function, vec4<i32>>, acc_hi: ptr<function, vec4<i32>>) {
+fn predict(q: vec2<i32>, j: vec4<i32>, d: vec2<i32>, dp: vec2<i32>) -> Vec8 {
     let delta = phi_inv(j, dp);
     let s = coords[region_index(q + delta)];
     let h = params.spacing;
     let u = s - scaled_jd(h, j, delta) + (h << COORD_FRAC) * d;
-    add_bilinear(0u, u, acc_lo, acc_hi);
+    return bilinear(0u, u);
 }
 
-fn prediction_sum(q: vec2<i32>, j: vec4<i32>, d: vec2<i32>, s_lo: ptr<function, vec4<i32>>, s_hi: ptr<function, vec4<i32>>) {
-    var lo = vec4<i32>(0);
-    var hi = vec4<i32>(0);
-    predict(q, j, d, d, &lo, &hi);
-    predict(q, j, d, vec2<i32>(d.x, 0), &lo, &hi);
-    predict(q, j, d, vec2<i32>(0, d.y), &lo, &hi);
-    *s_lo = lo;
-    *s_hi = hi;
+fn prediction_sum(q: vec2<i32>, j: vec4<i32>, d: vec2<i32>) -> Vec8 {
+    let a = predict(q, j, d, d);
+    let b = predict(q, j, d, vec2<i32>(d.x, 0));
+    let c = predict(q, j, d, vec2<i32>(0, d.y));
+    return Vec8(a.lo + b.lo + c.lo, a.hi + b.hi + c.hi);
 }
 
 @compute @workgroup_size(8, 8, 1)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    opaque = i32(gid.z);
     let q = subpass_pixel(vec2<i32>(gid.xy));
     if (any(q < vec2<i32>(0))) {
         return;
@@ -88,15 +87,15 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let j = jac[self_index];
     let h = params.step;
 
-    var s0l: vec4<i32>; var s0h: vec4<i32>;
-    var s1l: vec4<i32>; var s1h: vec4<i32>;
-    var s2l: vec4<i32>; var s2h: vec4<i32>;
-    var s3l: vec4<i32>; var s3h: vec4<i32>;
-    prediction_sum(q, j, vec2<i32>(1, 1), &s0l, &s0h);
-    prediction_sum(q, j, vec2<i32>(1, -1), &s1l, &s1h);
-    prediction_sum(q, j, vec2<i32>(-1, 1), &s2l, &s2h);
-    prediction_sum(q, j, vec2<i32>(-1, -1), &s3l, &s3h);
-    let full = params.full_distance != 0u;
+    let p0 = prediction_sum(q, j, vec2<i32>(1, 1));
+    let p1 = prediction_sum(q, j, vec2<i32>(1, -1));
+    let p2 = prediction_sum(q, j, vec2<i32>(-1, 1));
+    let p3 = prediction_sum(q, j, vec2<i32>(-1, -1));
+    let s0l = p0.lo; let s0h = p0.hi;
+    let s1l = p1.lo; let s1h = p1.hi;
+    let s2l = p2.lo; let s2h = p2.hi;
+    let s3l = p3.lo; let s3h = p3.hi;
+    let full = (params.full_distance | u32(opaque)) != 0u;
     var ns_lo = vec4<i32>(0);
     var ns_hi = vec4<i32>(0);
     if (!full) {
@@ -126,7 +125,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             let s = coords[region_index(q + dd)];
             let hjd = scaled_jd(params.spacing, j, dd);
             let obase = params.off_base + ex_index(nearest_texel(s)) * km1;
-            for (var i = 0; i < params.k; i++) {
+            for (var i = 0; i < (params.k | opaque); i++) {
                 var o = vec2<i32>(0);
                 if (i > 0) {
                     let w = offsets[obase + u32(i - 1)];

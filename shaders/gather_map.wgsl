@@ -21,6 +21,7 @@ fn isqrt(x: i32) -> i32 {
 
 @compute @workgroup_size(8, 8, 1)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    opaque = i32(gid.z);
     let p = vec2<i32>(gid.xy);
     if (any(p >= params.window_size)) {
         return;
@@ -29,7 +30,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let idx = params.coord_base + u32(q.y * params.size.x + q.x);
     let c = coords[idx];
     var v: vec4<i32>;
-    if (params.coord_frac == 0u) {
+    if ((params.coord_frac | u32(opaque)) == 0u) {
         v = map_u(c);
     } else {
         let taps = bilinear_taps(read_coord_fx(c));
@@ -40,7 +41,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         let s = g.x * g.y * map_u(i0) + f.x * g.y * map_u(vec2<i32>(i1.x, i0.y))
             + g.x * f.y * map_u(vec2<i32>(i0.x, i1.y)) + f.x * f.y * map_u(i1);
         v = (s + vec4<i32>(32768)) >> vec4<u32>(16u);
-        if (params.map_kind == 1u) {
+        if ((params.map_kind | u32(opaque)) == 1u) {
             let j = jac[idx];
             let n = 2 * v.xy - vec2<i32>(255);
             var r: vec2<i32>;

@@ -16,14 +16,14 @@ fn hi_u(c: vec2<i32>) -> vec4<i32> {
 fn hi_bilinear(u_in: vec2<i32>) -> vec4<i32> {
     let n = params.hi_size << vec2<u32>(COORD_FRAC);
     var u: vec2<i32>;
-    if (params.tileable != 0) {
+    if ((params.tileable | opaque) != 0) {
         u = vec2<i32>(wrap(u_in.x, n.x), wrap(u_in.y, n.y));
     } else {
         u = clamp(u_in, vec2<i32>(0), n - vec2<i32>(1 << COORD_FRAC));
     }
     let i0 = u >> vec2<u32>(COORD_FRAC);
     var i1: vec2<i32>;
-    if (params.tileable != 0) {
+    if ((params.tileable | opaque) != 0) {
         i1 = select(i0 + vec2<i32>(1), vec2<i32>(0), i0 + vec2<i32>(1) == params.hi_size);
     } else {
         i1 = min(i0 + vec2<i32>(1), params.hi_size - vec2<i32>(1));
@@ -37,6 +37,7 @@ fn hi_bilinear(u_in: vec2<i32>) -> vec4<i32> {
 
 @compute @workgroup_size(8, 8, 1)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    opaque = i32(gid.z);
     let o = vec2<i32>(gid.xy);
     let big = i32(params.magnify);
     if (any(o >= params.window_size * big)) {
@@ -55,7 +56,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             let s = coords[idx] << vec2<u32>(COORD_FRAC - params.coord_frac);
             let v = r - den * d;
             var off = vec2<i32>(128) * v;
-            if (params.coord_frac != 0u) {
+            if ((params.coord_frac | u32(opaque)) != 0u) {
                 let j = jac[idx];
                 off = (vec2<i32>(j.x * v.x + j.y * v.y, j.z * v.x + j.w * v.y) + vec2<i32>(4)) >> vec2<u32>(3u);
             }

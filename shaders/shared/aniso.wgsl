@@ -23,24 +23,25 @@ fn phi_inv(j: vec4<i32>, d: vec2<i32>) -> vec2<i32> {
 
 fn read_coord_fx(c: vec2<i32>) -> vec2<i32> {
     let n = params.ex_size << vec2<u32>(COORD_FRAC);
-    if (params.tileable != 0) {
+    if ((params.tileable | opaque) != 0) {
         return vec2<i32>(wrap(c.x, n.x), wrap(c.y, n.y));
     }
     return clamp(c, vec2<i32>(0), n - vec2<i32>(1 << COORD_FRAC));
 }
 
 fn is_valid_fx(c: vec2<i32>) -> bool {
-    if (params.tileable != 0) {
+    if ((params.tileable | opaque) != 0) {
         return true;
     }
-    let lo = vec2<i32>(params.margin << COORD_FRAC);
-    let hi = (params.ex_size - vec2<i32>(1 + params.margin)) << vec2<u32>(COORD_FRAC);
+    let m = params.margin | opaque;
+    let lo = vec2<i32>(m << COORD_FRAC);
+    let hi = ((params.ex_size | vec2<i32>(opaque)) - vec2<i32>(1 + m)) << vec2<u32>(COORD_FRAC);
     return all(c >= lo) && all(c <= hi);
 }
 
 fn nearest_texel(c: vec2<i32>) -> vec2<i32> {
     let r = (c + vec2<i32>(1 << (COORD_FRAC - 1u))) >> vec2<u32>(COORD_FRAC);
-    if (params.tileable != 0) {
+    if ((params.tileable | opaque) != 0) {
         return select(r, r - params.ex_size, r >= params.ex_size);
     }
     return min(r, params.ex_size - vec2<i32>(1));
@@ -58,7 +59,7 @@ struct Taps {
 fn bilinear_taps(u: vec2<i32>) -> Taps {
     let a = u >> vec2<u32>(COORD_FRAC);
     var b: vec2<i32>;
-    if (params.tileable != 0) {
+    if ((params.tileable | opaque) != 0) {
         b = select(a + vec2<i32>(1), vec2<i32>(0), a + vec2<i32>(1) == params.ex_size);
     } else {
         b = min(a + vec2<i32>(1), params.ex_size - vec2<i32>(1));

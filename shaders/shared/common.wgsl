@@ -40,6 +40,13 @@ struct Params {
 }
 
 @group(0) @binding(0) var<uniform> params: Params;
+
+// 0 at run time (the correction passes set it from global_invocation_id.z, always 0),
+// but unknown to the compiler. Mixed into the uniforms that steer branches and loops:
+// lavapipe otherwise specializes ("inlines") such uniforms and compiles a new variant of
+// the shader for every new combination of values, i.e. for nearly every dispatch
+// (measured ~10 ms per dispatch of the anisometric correction).
+var<private> opaque: i32;
 // Synthesized exemplar coordinates of every level's region, concatenated.
 @group(0) @binding(1) var<storage, read_write> coords: array<vec2<i32>>;
 // Quantized transformed exemplar Et_l: 8 x i16 per pixel, all levels.
@@ -96,7 +103,7 @@ fn wrap(c: i32, n: i32) -> i32 {
 // In units of 2^-coord_frac exemplar pixels.
 fn fit_coord(c: vec2<i32>) -> vec2<i32> {
     let f = vec2<u32>(params.coord_frac);
-    if (params.tileable != 0) {
+    if ((params.tileable | opaque) != 0) {
         let n = params.ex_size << f;
         return vec2<i32>(wrap(c.x, n.x), wrap(c.y, n.y));
     }
@@ -117,25 +124,26 @@ fn wrap_near(c: vec2<i32>) -> vec2<i32> {
 }
 
 fn fit_near(c: vec2<i32>) -> vec2<i32> {
-    if (params.tileable != 0) {
+    if ((params.tileable | opaque) != 0) {
         return wrap_near(c);
     }
     return fit_coord(c);
 }
 
 fn read_coord(c: vec2<i32>) -> vec2<i32> {
-    if (params.tileable != 0) {
+    if ((params.tileable | opaque) != 0) {
         return wrap_near(c);
     }
     return clamp(c, vec2<i32>(0), params.ex_size - vec2<i32>(1));
 }
 
 fn is_valid(c: vec2<i32>) -> bool {
-    if (params.tileable != 0) {
+    if ((params.tileable | opaque) != 0) {
         return true;
     }
-    let hi = params.ex_size - vec2<i32>(1 + params.margin);
-    return all(c >= vec2<i32>(params.margin)) && all(c <= hi);
+    let m = params.margin | opaque;
+    let hi = (params.ex_size | vec2<i32>(opaque)) - vec2<i32>(1 + m);
+    return all(c >= vec2<i32>(m)) && all(c <= hi);
 }
 
 // Index into `coords` of region pixel q (clamped into the region).
@@ -143,7 +151,7 @@ fn is_valid(c: vec2<i32>) -> bool {
 // (neighbours are at most one pixel outside).
 fn region_index(q: vec2<i32>) -> u32 {
     var c: vec2<i32>;
-    if (params.periodic != 0u) {
+    if ((params.periodic | u32(opaque)) != 0u) {
         let n = params.size;
         c = q + select(vec2<i32>(0), n, q < vec2<i32>(0));
         c = c - select(vec2<i32>(0), n, c >= n);
@@ -177,7 +185,7 @@ fn unpack8(v: vec4<u32>, out_lo: ptr<function, vec4<i32>>, out_hi: ptr<function,
 // pair, so no two updated pixels are neighbours. Returns the region coordinate this
 // invocation updates along one axis, or -1.
 fn subpass_axis(cls: i32, origin: i32, size: i32, g: i32) -> i32 {
-    let odd_wrap = params.periodic != 0u && (size & 1) == 1 && size >= 3;
+    let odd_wrap = (params.periodic | u32(opaque)) != 0u && (size & 1) == 1 && size >= 3;
     if (cls == 2) {
         return select(-1, size - 1, g == 0);
     }
@@ -189,8 +197,10 @@ fn subpass_axis(cls: i32, origin: i32, size: i32, g: i32) -> i32 {
 }
 
 fn subpass_pixel(g: vec2<i32>) -> vec2<i32> {
+    let parity = params.parity | vec2<i32>(opaque);
+    let size = params.size | vec2<i32>(opaque);
     return vec2<i32>(
-        subpass_axis(params.parity.x, params.origin.x, params.size.x, g.x),
-        subpass_axis(params.parity.y, params.origin.y, params.size.y, g.y),
+        subpass_axis(parity.x, params.origin.x, size.x, g.x),
+        subpass_axis(parity.y, params.origin.y, size.y, g.y),
     );
 }
