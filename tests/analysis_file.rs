@@ -104,12 +104,12 @@ fn synthetic(width: u32, height: u32, k: u32, tileable: bool, seed: u64) -> Anal
         k,
         colors,
         levels,
-        appearance: if seed % 2 == 0 {
+        appearance: if seed.is_multiple_of(2) {
             AppearanceSpace::Neighborhood
         } else {
             AppearanceSpace::Color
         },
-        feature: (seed % 3 == 0).then_some(FeatureInfo {
+        feature: seed.is_multiple_of(3).then_some(FeatureInfo {
             weight: 1.5,
             clamp: 8.0,
             coverage: 0.25,
