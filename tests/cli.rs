@@ -782,6 +782,18 @@ fn controls_end_to_end_and_their_bad_inputs() {
         1,
         "analysis file",
     );
+    fails(
+        &dir,
+        &["synth", "g.tsa", "-o", "out.png", "--size", "24", "--appearance", "color"],
+        1,
+        "does not match",
+    );
+    fails(
+        &dir,
+        &["synth", "g.tsa", "-o", "out.png", "--size", "24", "--feature-mask", "height.png"],
+        1,
+        "analysis file",
+    );
 
     // The controls work end to end.
     ok(

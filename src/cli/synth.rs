@@ -221,6 +221,22 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
     let t = Instant::now();
     let mut source = read_source(&args.exemplar, args.k, args.tile.get())?;
     let read_time = t.elapsed();
+    if let Source::Analysis(a) = &source {
+        // The appearance space is fixed by the analysis: options that would change it
+        // are refused rather than silently ignored.
+        if args.appearance.feature_mask.is_some() {
+            return Err(fail(format!(
+                "--feature-mask applies when analysing an image; {} is an analysis file: re-run `texsyn analyze --feature-mask ...`",
+                args.exemplar.display()
+            )));
+        }
+        if args.appearance.appearance != a.appearance {
+            return Err(fail(format!(
+                "--appearance does not match the analysis file {}; drop it or re-run `texsyn analyze --appearance ...`",
+                args.exemplar.display()
+            )));
+        }
+    }
     // Magnification: analyse a downsampled copy, keep the full colours.
     let mut hi_res = None;
     if let Some(f) = args.magnify {
