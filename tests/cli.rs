@@ -745,16 +745,22 @@ fn controls_end_to_end_and_their_bad_inputs() {
     let dir = TempDir::new("controls");
     // A field image of the wrong size, a NaN EXR field, a material map of the wrong
     // size, and a good map.
-    image::RgbImage::new(10, 10).save(dir.path("field10.png")).unwrap();
+    image::RgbImage::new(10, 10)
+        .save(dir.path("field10.png"))
+        .unwrap();
     let mut nan = image::Rgba32FImage::from_pixel(24, 24, image::Rgba([1.0, 0.0, 0.0, 1.0]));
     nan.put_pixel(3, 4, image::Rgba([f32::NAN, 0.0, 0.0, 1.0]));
     image::DynamicImage::ImageRgba32F(nan)
         .save(dir.path("nan.exr"))
         .unwrap();
-    image::GrayImage::new(20, 20).save(dir.path("small_map.png")).unwrap();
-    image::GrayImage::from_fn(128, 128, |x, y| image::Luma([((x * 7 + y * 3) % 256) as u8]))
-        .save(dir.path("height.png"))
+    image::GrayImage::new(20, 20)
+        .save(dir.path("small_map.png"))
         .unwrap();
+    image::GrayImage::from_fn(128, 128, |x, y| {
+        image::Luma([((x * 7 + y * 3) % 256) as u8])
+    })
+    .save(dir.path("height.png"))
+    .unwrap();
     ok(&dir, &["analyze", GRAVEL, "-o", "g.tsa"]);
 
     let base = ["synth", GRAVEL, "-o", "out.png", "--size", "24"];
@@ -766,7 +772,11 @@ fn controls_end_to_end_and_their_bad_inputs() {
         let args: Vec<&str> = args.iter().map(|s| s.as_str()).collect();
         fails(&dir, &args, code, needle);
     };
-    fails_with(&["--field", "image:field10.png"], 1, "must have the output's size");
+    fails_with(
+        &["--field", "image:field10.png"],
+        1,
+        "must have the output's size",
+    );
     fails_with(&["--field", "exr:nan.exr"], 1, "NaN");
     fails_with(&["--field", "rotate:abc"], 2, "not a number");
     fails_with(&["--field", "scale:0"], 1, "zero scale");
@@ -775,22 +785,53 @@ fn controls_end_to_end_and_their_bad_inputs() {
     fails_with(&["--also", "small_map.png=o.png"], 1, "aligned");
     fails_with(&["--also", "nothing"], 2, "IN=OUT");
     fails_with(&["--magnify", "3"], 2, "2, 4 or 8");
-    fails_with(&["--tileable-output", "--window", "3,4"], 2, "cannot be used");
+    fails_with(
+        &["--tileable-output", "--window", "3,4"],
+        2,
+        "cannot be used",
+    );
     fails(
         &dir,
-        &["synth", "g.tsa", "-o", "out.png", "--size", "24", "--magnify", "2"],
+        &[
+            "synth",
+            "g.tsa",
+            "-o",
+            "out.png",
+            "--size",
+            "24",
+            "--magnify",
+            "2",
+        ],
         1,
         "analysis file",
     );
     fails(
         &dir,
-        &["synth", "g.tsa", "-o", "out.png", "--size", "24", "--appearance", "color"],
+        &[
+            "synth",
+            "g.tsa",
+            "-o",
+            "out.png",
+            "--size",
+            "24",
+            "--appearance",
+            "color",
+        ],
         1,
         "does not match",
     );
     fails(
         &dir,
-        &["synth", "g.tsa", "-o", "out.png", "--size", "24", "--feature-mask", "height.png"],
+        &[
+            "synth",
+            "g.tsa",
+            "-o",
+            "out.png",
+            "--size",
+            "24",
+            "--feature-mask",
+            "height.png",
+        ],
         1,
         "analysis file",
     );
@@ -799,20 +840,55 @@ fn controls_end_to_end_and_their_bad_inputs() {
     ok(
         &dir,
         &[
-            "synth", GRAVEL, "-o", "f.png", "--size", "40x32", "--field", "swirl", "--also",
-            "height.png=h.png", "--coords-out", "f.exr",
+            "synth",
+            GRAVEL,
+            "-o",
+            "f.png",
+            "--size",
+            "40x32",
+            "--field",
+            "swirl",
+            "--also",
+            "height.png=h.png",
+            "--coords-out",
+            "f.exr",
         ],
     );
     assert_eq!(png_size(&dir.path("f.png")), (40, 32));
     assert_eq!(png_size(&dir.path("h.png")), (40, 32));
     let json = ok(
         &dir,
-        &["eval", GRAVEL, "f.png", "--coords", "f.exr", "--field", "swirl"],
+        &[
+            "eval", GRAVEL, "f.png", "--coords", "f.exr", "--field", "swirl",
+        ],
     );
     assert!(json.contains("\"jacobian\":{"), "{json}");
-    ok(&dir, &["synth", GRAVEL, "-o", "m.png", "--size", "20", "--magnify", "2"]);
+    ok(
+        &dir,
+        &[
+            "synth",
+            GRAVEL,
+            "-o",
+            "m.png",
+            "--size",
+            "20",
+            "--magnify",
+            "2",
+        ],
+    );
     assert_eq!(png_size(&dir.path("m.png")), (40, 40));
-    ok(&dir, &["synth", GRAVEL, "-o", "t.png", "--size", "30", "--tileable-output"]);
+    ok(
+        &dir,
+        &[
+            "synth",
+            GRAVEL,
+            "-o",
+            "t.png",
+            "--size",
+            "30",
+            "--tileable-output",
+        ],
+    );
     let json = ok(&dir, &["eval", GRAVEL, "t.png"]);
     assert!(json.contains("\"wrap_seam_ratio\":"), "{json}");
 }

@@ -115,7 +115,13 @@ pub struct GpuSynthesizer {
     proj: wgpu::Buffer,
     colors: wgpu::Buffer,
     scratch: Mutex<Option<Scratch>>,
+    /// The last rasterized Jacobian field and the regions it covers: a frame loop that
+    /// keeps its field and window reuses it instead of rasterizing again.
+    jacobians: Mutex<Option<(JacobianKey, wgpu::Buffer)>>,
 }
+
+/// What a rasterized Jacobian buffer depends on.
+type JacobianKey = (Option<crate::field::Field>, Vec<([i32; 2], [u32; 2])>);
 
 fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
@@ -278,6 +284,7 @@ impl GpuSynthesizer {
                 colors,
                 analysis: analysis.clone(),
                 scratch: Mutex::new(None),
+                jacobians: Mutex::new(None),
             }
         })
     }
@@ -395,18 +402,31 @@ impl GpuSynthesizer {
         }
         // The Jacobian field, rasterized on the host for this plan's regions (a
         // placeholder for isometric synthesis). Per call, like the parameters.
-        let jacobians = plan.jacobians();
-        let jac = ctx
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("texsyn jacobians"),
-                contents: if jacobians.is_empty() {
-                    &[0u8; 16]
-                } else {
-                    bytemuck::cast_slice(&jacobians)
-                },
-                usage: wgpu::BufferUsages::STORAGE,
-            });
+        let key: JacobianKey = (
+            plan.params.field.clone(),
+            plan.levels.iter().map(|l| (l.origin, l.size)).collect(),
+        );
+        let mut cached = self.jacobians.lock().unwrap_or_else(|e| e.into_inner());
+        let jac = match cached.as_ref() {
+            Some((k, buffer)) if *k == key => buffer.clone(),
+            _ => {
+                let jacobians = plan.jacobians();
+                let buffer = ctx
+                    .device
+                    .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                        label: Some("texsyn jacobians"),
+                        contents: if jacobians.is_empty() {
+                            &[0u8; 16]
+                        } else {
+                            bytemuck::cast_slice(&jacobians)
+                        },
+                        usage: wgpu::BufferUsages::STORAGE,
+                    });
+                *cached = Some((key, buffer.clone()));
+                buffer
+            }
+        };
+        drop(cached);
         // Parameters live in their own buffer per call: a later call must not overwrite
         // them before this one's commands have run.
         let params = ctx
