@@ -340,3 +340,47 @@ pub fn subpass_pixels(p: &PassParams) -> Vec<[i32; 2]> {
         .flat_map(|&y| xs.iter().map(move |&x| [x, y]))
         .collect()
 }
+
+/// An RGBA8 table of `size` (exemplar colours, an extra map, or the high-resolution
+/// exemplar of magnification) bilinearly interpolated at a fixed-point position (1/256
+/// texel; wrapped when `tileable`, else clamped), weights in 1/65536, rounded.
+pub fn bilinear_rgba(table: &[[u8; 4]], size: [i32; 2], tileable: bool, u: [i32; 2]) -> [i32; 4] {
+    let n = [size[0] << COORD_FRAC, size[1] << COORD_FRAC];
+    let u = if tileable {
+        [wrap(u[0], n[0]), wrap(u[1], n[1])]
+    } else {
+        [
+            u[0].clamp(0, n[0] - (1 << COORD_FRAC)),
+            u[1].clamp(0, n[1] - (1 << COORD_FRAC)),
+        ]
+    };
+    let i0 = [u[0] >> COORD_FRAC, u[1] >> COORD_FRAC];
+    let next = |i: i32, n: i32| {
+        if tileable {
+            if i + 1 == n {
+                0
+            } else {
+                i + 1
+            }
+        } else {
+            (i + 1).min(n - 1)
+        }
+    };
+    let i1 = [next(i0[0], size[0]), next(i0[1], size[1])];
+    let mask = (1 << COORD_FRAC) - 1;
+    let f = [u[0] & mask, u[1] & mask];
+    let at = |c: [i32; 2]| table[(c[1] * size[0] + c[0]) as usize].map(|v| v as i32);
+    let w = [
+        (256 - f[0]) * (256 - f[1]),
+        f[0] * (256 - f[1]),
+        (256 - f[0]) * f[1],
+        f[0] * f[1],
+    ];
+    let t = [at(i0), at([i1[0], i0[1]]), at([i0[0], i1[1]]), at(i1)];
+    let mut out = [0i32; 4];
+    for (ch, o) in out.iter_mut().enumerate() {
+        let s: i32 = (0..4).map(|i| w[i] * t[i][ch]).sum();
+        *o = (s + 32768) >> 16;
+    }
+    out
+}

@@ -2,30 +2,11 @@
 //! interpolated at the finest level's continuous coordinate (integer weights in
 //! 1/65536, rounded), for the pixels of the output window.
 
-use super::common::{bilinear_taps, read_coord_fx, PassParams};
+use super::common::{bilinear_rgba, PassParams};
 
 /// Bilinear RGBA8 colour at a fixed-point exemplar position.
 pub fn color_at(p: &PassParams, colors: &[[u8; 4]], c: [i32; 2]) -> [u8; 4] {
-    let (i0, i1, f) = bilinear_taps(read_coord_fx(c, p), p);
-    let at = |x: i32, y: i32| colors[(y * p.ex_size[0] + x) as usize];
-    let w = [
-        (256 - f[0]) * (256 - f[1]),
-        f[0] * (256 - f[1]),
-        (256 - f[0]) * f[1],
-        f[0] * f[1],
-    ];
-    let t = [
-        at(i0[0], i0[1]),
-        at(i1[0], i0[1]),
-        at(i0[0], i1[1]),
-        at(i1[0], i1[1]),
-    ];
-    let mut out = [0u8; 4];
-    for ch in 0..4 {
-        let v: i32 = (0..4).map(|i| w[i] * t[i][ch] as i32).sum();
-        out[ch] = ((v + 32768) >> 16) as u8;
-    }
-    out
+    bilinear_rgba(colors, p.ex_size, p.tileable != 0, c).map(|v| v as u8)
 }
 
 /// Returns the window's fixed-point coordinates and RGBA8 colours, row-major.

@@ -3,7 +3,7 @@
 //! the colours; tangent-space normal maps have their x, y rotated with the texture when
 //! a field rotates it (by the rotation part of `J^-1`, integer arithmetic).
 
-use super::common::{bilinear_taps, read_coord_fx, PassParams};
+use super::common::{bilinear_rgba, PassParams};
 
 fn isqrt(x: i32) -> i32 {
     let mut r = (x as f64).sqrt() as i32;
@@ -48,19 +48,7 @@ pub fn run(p: &PassParams, coords: &[[i32; 2]], jac: &[[i32; 4]], map: &[[u8; 4]
             let v = if p.coord_frac == 0 {
                 at(c)
             } else {
-                let (i0, i1, f) = bilinear_taps(read_coord_fx(c, p), p);
-                let w = [
-                    (256 - f[0]) * (256 - f[1]),
-                    f[0] * (256 - f[1]),
-                    (256 - f[0]) * f[1],
-                    f[0] * f[1],
-                ];
-                let t = [at(i0), at([i1[0], i0[1]]), at([i0[0], i1[1]]), at(i1)];
-                let mut v = [0i32; 4];
-                for ch in 0..4 {
-                    let s: i32 = (0..4).map(|i| w[i] * t[i][ch]).sum();
-                    v[ch] = (s + 32768) >> 16;
-                }
+                let v = bilinear_rgba(map, p.ex_size, p.tileable != 0, c);
                 if p.map_kind == 1 {
                     rotate_normal(v, jac[idx])
                 } else {

@@ -5,54 +5,10 @@
 //! `E_H[F (S[q] + J(q) (x - q))]` of the four nearest synthesized pixels `q`. Integer
 //! arithmetic throughout (`2F (x - q)` is an integer; positions in 1/256 texel).
 
-use super::common::{region_index, wrap, PassParams, COORD_FRAC};
+use super::common::{bilinear_rgba, region_index, PassParams, COORD_FRAC};
 
 fn hi_bilinear(p: &PassParams, hi: &[[u8; 4]], u: [i32; 2]) -> [i32; 4] {
-    let n = [p.hi_size[0] << COORD_FRAC, p.hi_size[1] << COORD_FRAC];
-    let u = if p.tileable != 0 {
-        [wrap(u[0], n[0]), wrap(u[1], n[1])]
-    } else {
-        [
-            u[0].clamp(0, n[0] - (1 << COORD_FRAC)),
-            u[1].clamp(0, n[1] - (1 << COORD_FRAC)),
-        ]
-    };
-    let i0 = [u[0] >> COORD_FRAC, u[1] >> COORD_FRAC];
-    let i1 = if p.tileable != 0 {
-        [
-            if i0[0] + 1 == p.hi_size[0] {
-                0
-            } else {
-                i0[0] + 1
-            },
-            if i0[1] + 1 == p.hi_size[1] {
-                0
-            } else {
-                i0[1] + 1
-            },
-        ]
-    } else {
-        [
-            (i0[0] + 1).min(p.hi_size[0] - 1),
-            (i0[1] + 1).min(p.hi_size[1] - 1),
-        ]
-    };
-    let mask = (1 << COORD_FRAC) - 1;
-    let f = [u[0] & mask, u[1] & mask];
-    let at = |c: [i32; 2]| hi[(c[1] * p.hi_size[0] + c[0]) as usize].map(|v| v as i32);
-    let w = [
-        (256 - f[0]) * (256 - f[1]),
-        f[0] * (256 - f[1]),
-        (256 - f[0]) * f[1],
-        f[0] * f[1],
-    ];
-    let t = [at(i0), at([i1[0], i0[1]]), at([i0[0], i1[1]]), at(i1)];
-    let mut out = [0i32; 4];
-    for ch in 0..4 {
-        let s: i32 = (0..4).map(|i| w[i] * t[i][ch]).sum();
-        out[ch] = (s + 32768) >> 16;
-    }
-    out
+    bilinear_rgba(hi, p.hi_size, p.tileable != 0, u)
 }
 
 /// The magnified window (`F * window_size`), RGBA8 row-major. `coords`/`jac` as in
