@@ -8,19 +8,21 @@ use texsyn::field::{self, Field};
 
 use super::{fail, CliResult};
 
-pub const FIELD_HELP: &str = "Anisometric synthesis along a Jacobian field. SPEC is one of:\n\
-  rotate:DEG                    the texture rotated by DEG degrees\n\
-  scale:S[,SY]                  magnified by S (or S along x, SY along y)\n\
-  constant:DEG,SX,SY,SHEAR      rotation, scales and shear together\n\
-  vortex[:CX,CY[,S]]            the texture's x axis circles around (CX, CY)\n\
-  swirl[:CX,CY,R,TURNS[,S]]     rotated by TURNS*360 deg at the centre, fading to 0 at radius R\n\
-  radial[:CX,CY,R,S,GROWTH]     'up' points at the centre, magnified by S at radius R, S*GROWTH at the centre\n\
-  perspective[:HORIZON,S]       ground plane: horizon at row HORIZON, magnification S at the bottom row\n\
-  image:FILE                    per pixel: red = rotation (0..1 = 0..360 deg), green = magnification\n\
-                                (0..1 = 1/8..8, log scale, 0.5 = 1); the output's size\n\
-  exr:FILE                      per pixel 2x2 Jacobian (R, G, B, A = J00, J01, J10, J11; exemplar\n\
-                                pixels per output pixel); the output's size\n\
-Positions are output pixels; defaults: the output's centre, R = half its smaller side, S = 1.\n\
+pub const FIELD_HELP: &str = "Anisometric synthesis along a Jacobian field. SPEC is one of:
+  rotate:DEG                  the texture rotated by DEG degrees
+  scale:S[,SY]                magnified by S (or S along x, SY along y)
+  constant:DEG,SX,SY,SHEAR    rotation, scales and shear together
+  vortex[:CX,CY[,S]]          the texture's x axis circles around (CX, CY)
+  swirl[:CX,CY,R,TURNS[,S]]   rotated by TURNS*360 deg at the centre, fading to 0 at radius R
+  radial[:CX,CY,R,S,GROWTH]   'up' points at the centre; magnified by S at radius R and
+                              S*GROWTH at the centre
+  perspective[:HORIZON,S]     ground plane: horizon at row HORIZON, magnification S at the
+                              bottom row
+  image:FILE                  per pixel: red = rotation (0..1 = 0..360 deg), green =
+                              magnification (0..1 = 1/8..8, log scale, 0.5 = 1); the output's size
+  exr:FILE                    per pixel 2x2 Jacobian (R, G, B, A = J00, J01, J10, J11; exemplar
+                              pixels per output pixel); the output's size
+Positions are output pixels; defaults: the output's centre, R = half its smaller side, S = 1.
 Magnifications are clamped to 1/8..8 (singular or huge Jacobians too).";
 
 /// A parsed `--field` argument (numbers still unresolved against the output size).
