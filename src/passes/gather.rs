@@ -9,6 +9,16 @@ pub fn run(
     coords: &[[i32; 2]],
     colors: &[[u8; 4]],
 ) -> (Vec<[i32; 2]>, Vec<[u8; 4]>) {
+    gather_window(p, coords, |c| colors[(c[1] * p.ex_size[0] + c[0]) as usize])
+}
+
+/// The window's coordinates (finest level) and the colour `color(c)` of each, row-major:
+/// the walk shared by the isometric and anisometric gathers.
+pub fn gather_window(
+    p: &PassParams,
+    coords: &[[i32; 2]],
+    color: impl Fn([i32; 2]) -> [u8; 4],
+) -> (Vec<[i32; 2]>, Vec<[u8; 4]>) {
     let n = (p.window_size[0] * p.window_size[1]) as usize;
     let mut out_coords = Vec::with_capacity(n);
     let mut out_colors = Vec::with_capacity(n);
@@ -17,7 +27,7 @@ pub fn run(
             let q = [x + p.window_offset[0], y + p.window_offset[1]];
             let c = coords[p.coord_base as usize + (q[1] * p.size[0] + q[0]) as usize];
             out_coords.push(c);
-            out_colors.push(colors[(c[1] * p.ex_size[0] + c[0]) as usize]);
+            out_colors.push(color(c));
         }
     }
     (out_coords, out_colors)

@@ -15,16 +15,5 @@ pub fn run(
     coords: &[[i32; 2]],
     colors: &[[u8; 4]],
 ) -> (Vec<[i32; 2]>, Vec<[u8; 4]>) {
-    let n = (p.window_size[0] * p.window_size[1]) as usize;
-    let mut out_coords = Vec::with_capacity(n);
-    let mut out_colors = Vec::with_capacity(n);
-    for y in 0..p.window_size[1] {
-        for x in 0..p.window_size[0] {
-            let q = [x + p.window_offset[0], y + p.window_offset[1]];
-            let c = coords[p.coord_base as usize + (q[1] * p.size[0] + q[0]) as usize];
-            out_coords.push(c);
-            out_colors.push(color_at(p, colors, c));
-        }
-    }
-    (out_coords, out_colors)
+    super::gather::gather_window(p, coords, |c| color_at(p, colors, c))
 }
