@@ -12,6 +12,7 @@ pub mod image_io;
 pub mod passes;
 pub mod quality;
 pub mod session;
+pub mod surface;
 mod shader_preprocess;
 
 pub use analysis::{Analysis, AnalysisOptions, Exemplar};
