@@ -84,6 +84,10 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let self_index = region_index(q);
+    // Atlas synthesis leaves texels outside the charts to the fill pass.
+    if (!in_chart(self_index - params.coord_base)) {
+        return;
+    }
     let j = jac[self_index];
     let h = params.step;
 

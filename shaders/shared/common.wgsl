@@ -36,6 +36,12 @@ struct Params {
     // Magnify pass: high-resolution exemplar size and factor.
     hi_size: vec2<i32>,
     magnify: u32,
+    // Atlas synthesis: skip texels outside charts (mask bits from surface[mask_base]).
+    masked: u32,
+    mask_base: u32,
+    // Fill pass: indirection entries of this level (4 words each from surface[fill_base]).
+    fill_base: u32,
+    fill_count: u32,
     _pad3: u32,
 }
 
@@ -66,6 +72,18 @@ var<private> opaque: i32;
 // Anisometric passes: quantized Jacobian per region pixel (row-major a, b, c, d in
 // 1/1024), in the layout of `coords`. A 16-byte placeholder for isometric synthesis.
 @group(0) @binding(8) var<storage, read> jac: array<vec4<i32>>;
+// Atlas synthesis (src/passes/fill.rs): per level, the chart mask (one bit per region
+// texel) and the indirection entries. A 16-byte placeholder otherwise.
+@group(0) @binding(9) var<storage, read> surface: array<u32>;
+
+// Whether region texel t (index within the level) lies inside a chart; always true
+// outside atlas synthesis.
+fn in_chart(t: u32) -> bool {
+    if ((params.masked | u32(opaque)) == 0u) {
+        return true;
+    }
+    return ((surface[params.mask_base + (t >> 5u)] >> (t & 31u)) & 1u) != 0u;
+}
 
 // Same as crate::analysis::QE_MAX.
 const QE_MAX: i32 = 4095;

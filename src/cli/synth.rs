@@ -312,6 +312,7 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
             None => None,
         },
         tileable_output: args.tileable_output,
+        surface: None,
     };
     // Validate the parameters before uploading anything.
     texsyn::passes::SynthPlan::new(&analysis, &params)?;

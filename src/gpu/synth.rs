@@ -109,6 +109,7 @@ pub struct GpuSynthesizer {
     gather_aniso: wgpu::ComputePipeline,
     gather_map: wgpu::ComputePipeline,
     magnify: wgpu::ComputePipeline,
+    fill: wgpu::ComputePipeline,
     et: wgpu::Buffer,
     qe: wgpu::Buffer,
     offsets: wgpu::Buffer,
@@ -117,11 +118,17 @@ pub struct GpuSynthesizer {
     scratch: Mutex<Option<Scratch>>,
     /// The last rasterized Jacobian field and the regions it covers: a frame loop that
     /// keeps its field and window reuses it instead of rasterizing again.
-    jacobians: Mutex<Option<(JacobianKey, wgpu::Buffer)>>,
+    /// With the surface buffer of atlas synthesis (a placeholder otherwise).
+    jacobians: Mutex<Option<(JacobianKey, wgpu::Buffer, wgpu::Buffer)>>,
 }
 
-/// What a rasterized Jacobian buffer depends on.
-type JacobianKey = (Option<crate::field::Field>, Vec<([i32; 2], [u32; 2])>);
+/// What a rasterized Jacobian buffer depends on: the field, the regions, and the atlas
+/// domain (by identity: a domain is immutable once shared).
+type JacobianKey = (
+    Option<crate::field::Field>,
+    Vec<([i32; 2], [u32; 2])>,
+    Option<usize>,
+);
 
 fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
@@ -219,6 +226,7 @@ impl GpuSynthesizer {
             }];
             entries.push(storage_entry(1, false));
             entries.push(storage_entry(8, true));
+            entries.push(storage_entry(9, true));
             for b in [2, 3, 4, 6] {
                 entries.push(storage_entry(b, true));
             }
@@ -276,6 +284,7 @@ impl GpuSynthesizer {
                 gather_aniso: pipeline(&shaders::GATHER_ANISO),
                 gather_map: pipeline(&shaders::GATHER_MAP),
                 magnify: pipeline(&shaders::MAGNIFY),
+                fill: pipeline(&shaders::FILL),
                 layout,
                 et,
                 qe,
@@ -308,7 +317,7 @@ impl GpuSynthesizer {
             ));
         }
         // Coordinates (8 bytes per pixel of every level), or the Jacobians (16 bytes).
-        let per_pixel = if p.field.is_some() { 16 } else { 8 };
+        let per_pixel = if p.anisometric() { 16 } else { 8 };
         let bytes = plan.coord_count * per_pixel;
         let max = limits
             .max_storage_buffer_binding_size
@@ -405,25 +414,33 @@ impl GpuSynthesizer {
         let key: JacobianKey = (
             plan.params.field.clone(),
             plan.levels.iter().map(|l| (l.origin, l.size)).collect(),
+            plan.params
+                .surface
+                .as_ref()
+                .map(|d| Arc::as_ptr(d) as usize),
         );
         let mut cached = self.jacobians.lock().unwrap_or_else(|e| e.into_inner());
-        let jac = match cached.as_ref() {
-            Some((k, buffer)) if *k == key => buffer.clone(),
+        let (jac, surface) = match cached.as_ref() {
+            Some((k, jac, surface)) if *k == key => (jac.clone(), surface.clone()),
             _ => {
-                let jacobians = plan.jacobians();
-                let buffer = ctx
-                    .device
-                    .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                        label: Some("texsyn jacobians"),
-                        contents: if jacobians.is_empty() {
-                            &[0u8; 16]
-                        } else {
-                            bytemuck::cast_slice(&jacobians)
-                        },
-                        usage: wgpu::BufferUsages::STORAGE,
-                    });
-                *cached = Some((key, buffer.clone()));
-                buffer
+                let init = |label: &str, words: &[u8]| {
+                    ctx.device
+                        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                            label: Some(label),
+                            contents: if words.is_empty() { &[0u8; 16] } else { words },
+                            usage: wgpu::BufferUsages::STORAGE,
+                        })
+                };
+                let jac = init(
+                    "texsyn jacobians",
+                    bytemuck::cast_slice(&plan.jacobians()),
+                );
+                let surface = init(
+                    "texsyn atlas surface",
+                    bytemuck::cast_slice(&plan.surface_words().0),
+                );
+                *cached = Some((key, jac.clone(), surface.clone()));
+                (jac, surface)
             }
         };
         drop(cached);
@@ -485,6 +502,10 @@ impl GpuSynthesizer {
                         binding: 8,
                         resource: jac.as_entire_binding(),
                     },
+                    wgpu::BindGroupEntry {
+                        binding: 9,
+                        resource: surface.as_entire_binding(),
+                    },
                 ],
             })
         };
@@ -503,6 +524,7 @@ impl GpuSynthesizer {
                     PassKind::UpsampleAniso => &self.upsample_aniso,
                     PassKind::CorrectAniso => &self.correct_aniso,
                     PassKind::GatherAniso => &self.gather_aniso,
+                    PassKind::Fill => &self.fill,
                 };
                 let [tx, ty] = d.threads();
                 if tx == 0 || ty == 0 {
@@ -743,7 +765,7 @@ impl GpuSynthesizer {
                 height: h,
                 coords: window,
                 colors,
-                coord_frac: if plan.params.field.is_some() {
+                coord_frac: if plan.params.anisometric() {
                     crate::passes::common::COORD_FRAC
                 } else {
                     0

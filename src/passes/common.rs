@@ -63,6 +63,14 @@ pub struct PassParams {
     /// Magnify pass only: size of the high-resolution exemplar, and the factor.
     pub hi_size: [i32; 2],
     pub magnify: u32,
+    /// Atlas synthesis: 1 if the correction skips texels outside the charts (their
+    /// mask bits start at word `mask_base` of the surface buffer), 0 otherwise.
+    pub masked: u32,
+    pub mask_base: u32,
+    /// Fill pass: this level's indirection entries, `fill_count` of them from word
+    /// `fill_base` of the surface buffer (4 words each, see `fill.rs`).
+    pub fill_base: u32,
+    pub fill_count: u32,
     pub _pad: u32,
 }
 

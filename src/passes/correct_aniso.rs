@@ -160,8 +160,18 @@ pub fn correct_pixel(
 }
 
 /// One subpass over the level's region.
-pub fn run(p: &PassParams, t: &LevelTables, coords: &mut [[i32; 2]], jac: &[[i32; 4]]) {
+pub fn run(
+    p: &PassParams,
+    t: &LevelTables,
+    coords: &mut [[i32; 2]],
+    jac: &[[i32; 4]],
+    surface: &[u32],
+) {
     for [x, y] in super::common::subpass_pixels(p) {
+        // Atlas synthesis leaves texels outside the charts to the fill pass.
+        if !super::fill::in_chart(p, surface, (y * p.size[0] + x) as u32) {
+            continue;
+        }
         let c = correct_pixel(p, t, coords, jac, [x, y]);
         coords[p.coord_base as usize + (y * p.size[0] + x) as usize] = c;
     }

@@ -5,6 +5,7 @@
 pub mod common;
 pub mod correct;
 pub mod correct_aniso;
+pub mod fill;
 pub mod gather;
 pub mod gather_aniso;
 pub mod gather_map;
@@ -64,6 +65,18 @@ pub fn run_cpu(
     coords: &mut [[i32; 2]],
     jac: &[[i32; 4]],
 ) -> Option<Synthesis> {
+    run_cpu_surface(analysis, schedule, coords, jac, &[])
+}
+
+/// [`run_cpu`] for atlas synthesis: `surface` is the plan's surface buffer
+/// ([`SynthPlan::surface_words`]).
+pub fn run_cpu_surface(
+    analysis: &Analysis,
+    schedule: &[Dispatch],
+    coords: &mut [[i32; 2]],
+    jac: &[[i32; 4]],
+    surface: &[u32],
+) -> Option<Synthesis> {
     let mut out = None;
     for d in schedule {
         let gathered = match d.kind {
@@ -84,7 +97,17 @@ pub fn run_cpu(
                 None
             }
             PassKind::CorrectAniso => {
-                correct_aniso::run(&d.params, &level_tables(analysis, d.level), coords, jac);
+                correct_aniso::run(
+                    &d.params,
+                    &level_tables(analysis, d.level),
+                    coords,
+                    jac,
+                    surface,
+                );
+                None
+            }
+            PassKind::Fill => {
+                fill::run(&d.params, coords, jac, surface);
                 None
             }
             PassKind::Gather => Some(gather::run(&d.params, coords, &analysis.colors)),
@@ -109,5 +132,9 @@ pub fn synthesize_cpu(analysis: &Analysis, params: &SynthParams) -> Result<Synth
     let schedule = plan.schedule(analysis);
     let mut coords = vec![[0i32; 2]; plan.coord_count as usize];
     let jac = plan.jacobians();
-    Ok(run_cpu(analysis, &schedule, &mut coords, &jac).expect("schedule ends with a gather"))
+    let surface = plan.surface_words().0;
+    Ok(
+        run_cpu_surface(analysis, &schedule, &mut coords, &jac, &surface)
+            .expect("schedule ends with a gather"),
+    )
 }

@@ -7,7 +7,10 @@
 //! that far from the region edge never see the clamped reads at the edge: the result is
 //! independent of the window, and overlapping windows agree.
 
+use std::sync::Arc;
+
 use super::common::{PassParams, COORD_FRAC};
+use super::fill::{AtlasDomain, SurfaceLayout, FILL_ROW};
 use crate::analysis::Analysis;
 use crate::error::{Error, Result};
 use crate::field::{self, Field};
@@ -42,6 +45,19 @@ pub struct SynthParams {
     /// every level is a torus (period `ceil(size / 2^steps)`), neighbours wrap around.
     /// The window origin must be 0.
     pub tileable_output: bool,
+    /// Atlas synthesis (surface texture, paper section 6): the output is the whole
+    /// atlas (`width` x `height` = the domain's finest level), the Jacobians come from
+    /// the domain, texels outside charts are not corrected and the gutters are refilled
+    /// through the indirection maps after every pass. Excludes `field`, windows and
+    /// `tileable_output`.
+    pub surface: Option<Arc<AtlasDomain>>,
+}
+
+impl SynthParams {
+    /// Whether the anisometric passes run (continuous coordinates, per-pixel J).
+    pub fn anisometric(&self) -> bool {
+        self.field.is_some() || self.surface.is_some()
+    }
 }
 
 /// Neighbourhood distance of the correction (see `passes/correct.rs`).
@@ -71,6 +87,7 @@ impl Default for SynthParams {
             distance: DistanceMode::Mixed,
             field: None,
             tileable_output: false,
+            surface: None,
         }
     }
 }
@@ -123,6 +140,8 @@ pub struct SynthPlan {
     pub window_offset: [u32; 2],
     /// Total coordinates over all levels.
     pub coord_count: u64,
+    /// Atlas synthesis: each level's mask and indirection entries in the surface buffer.
+    pub surface_layout: Vec<SurfaceLayout>,
 }
 
 fn floor_div2(x: i32) -> i32 {
@@ -201,9 +220,35 @@ impl SynthPlan {
                     .into(),
             ));
         }
+        if let Some(d) = &params.surface {
+            if params.field.is_some() || params.tileable_output || params.origin != [0, 0] {
+                return Err(Error::InvalidParameter(
+                    "atlas synthesis takes its Jacobians from the atlas: no field, window \
+                     origin or tileable output"
+                        .into(),
+                ));
+            }
+            if d.levels.len() < n_levels as usize
+                || d.levels[0].size != [params.width, params.height]
+            {
+                return Err(Error::InvalidParameter(format!(
+                    "the atlas domain has {} levels of a {:?} atlas; this synthesis needs {} \
+                     levels of {}x{}",
+                    d.levels.len(),
+                    d.levels.first().map(|l| l.size),
+                    n_levels,
+                    params.width,
+                    params.height
+                )));
+            }
+        }
         let mut rev = Vec::with_capacity(n_levels as usize);
         for level in (0..n_levels).rev() {
-            let (rlo, rhi) = if params.tileable_output {
+            let (rlo, rhi) = if let Some(d) = &params.surface {
+                // The atlas at this level's resolution, no margin: outside is gutter.
+                let sz = d.levels[(last - level) as usize].size;
+                ([0, 0], [sz[0] as i32, sz[1] as i32])
+            } else if params.tileable_output {
                 // One period, no margin: neighbours wrap around instead.
                 ([0, 0], [hi[0].max(1), hi[1].max(1)])
             } else if level == 0 {
@@ -250,11 +295,35 @@ impl SynthPlan {
             (params.origin[0] - fin.origin[0]) as u32,
             (params.origin[1] - fin.origin[1]) as u32,
         ];
+        let surface_layout = params
+            .surface
+            .as_ref()
+            .map(|d| d.surface_words(levels.len()).1)
+            .unwrap_or_default();
+        for (l, lp) in levels.iter().enumerate() {
+            if let Some(d) = &params.surface {
+                let dl = &d.levels[levels.len() - 1 - l];
+                let n = lp.size[0] as usize * lp.size[1] as usize;
+                if dl.size != lp.size || dl.jac.len() != n || dl.inside.len() != n.div_ceil(32) {
+                    return Err(Error::InvalidParameter(format!(
+                        "atlas domain level {} is inconsistent with its {:?} region",
+                        levels.len() - 1 - l,
+                        lp.size
+                    )));
+                }
+                if dl.fill.iter().any(|e| e.dst as usize >= n || e.src as usize >= n) {
+                    return Err(Error::InvalidParameter(
+                        "atlas domain indirection entry out of range".into(),
+                    ));
+                }
+            }
+        }
         Ok(Self {
             levels,
             params: params.clone(),
             window_offset,
             coord_count: base,
+            surface_layout,
         })
     }
 
@@ -307,7 +376,7 @@ impl SynthPlan {
             window_offset: [self.window_offset[0] as i32, self.window_offset[1] as i32],
             window_size: [self.params.width as i32, self.params.height as i32],
             full_distance: 0,
-            coord_frac: if self.params.field.is_some() {
+            coord_frac: if self.params.anisometric() {
                 COORD_FRAC
             } else {
                 0
@@ -316,6 +385,11 @@ impl SynthPlan {
             map_kind: 0,
             hi_size: [0, 0],
             magnify: 1,
+            masked: self.params.surface.is_some() as u32,
+            mask_base: self.surface_layout.get(level).map_or(0, |s| s.mask_base),
+            fill_base: self.surface_layout.get(level).map_or(0, |s| s.fill_base),
+            // The band; the schedule's last fill of a level covers the whole gutter.
+            fill_count: self.surface_layout.get(level).map_or(0, |s| s.band_count),
             _pad: 0,
         }
     }
@@ -326,6 +400,12 @@ impl SynthPlan {
     /// (empty for isometric synthesis). Pixel `p` of level `l` samples the field at its
     /// centre in output pixels.
     pub fn jacobians(&self) -> Vec<[i32; 4]> {
+        if let Some(d) = &self.params.surface {
+            let n = self.levels.len();
+            return (0..n)
+                .flat_map(|i| d.levels[n - 1 - i].jac.iter().copied())
+                .collect();
+        }
         let Some(f) = &self.params.field else {
             return Vec::new();
         };
@@ -343,6 +423,17 @@ impl SynthPlan {
     }
 }
 
+impl SynthPlan {
+    /// The surface buffer (chart masks and indirection entries) of an atlas synthesis;
+    /// empty otherwise.
+    pub fn surface_words(&self) -> (Vec<u32>, Vec<SurfaceLayout>) {
+        match &self.params.surface {
+            Some(d) => d.surface_words(self.levels.len()),
+            None => (Vec::new(), Vec::new()),
+        }
+    }
+}
+
 /// What a dispatch does.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum PassKind {
@@ -354,6 +445,8 @@ pub enum PassKind {
     UpsampleAniso,
     CorrectAniso,
     GatherAniso,
+    /// Atlas synthesis: refill the gutters through the indirection map.
+    Fill,
 }
 
 /// One dispatch of the schedule: the GPU and the CPU mirror run the same list.
@@ -385,6 +478,10 @@ impl Dispatch {
             PassKind::Gather | PassKind::GatherAniso => {
                 [p.window_size[0] as u32, p.window_size[1] as u32]
             }
+            PassKind::Fill => [
+                p.fill_count.min(FILL_ROW),
+                p.fill_count.div_ceil(FILL_ROW),
+            ],
         }
     }
 }
@@ -395,7 +492,7 @@ pub const SUBPASS_ORDER: [[i32; 2]; 4] = [[0, 0], [1, 1], [1, 0], [0, 1]];
 impl SynthPlan {
     /// Every dispatch of the synthesis, in order.
     pub fn schedule(&self, analysis: &Analysis) -> Vec<Dispatch> {
-        let aniso = self.params.field.is_some();
+        let aniso = self.params.anisometric();
         let (upsample, correct, gather) = if aniso {
             (
                 PassKind::UpsampleAniso,
@@ -413,7 +510,25 @@ impl SynthPlan {
                 level,
                 params,
             });
+            // Atlas synthesis: gutters refilled after every pass that writes coordinates.
+            let fill = Dispatch {
+                kind: PassKind::Fill,
+                level,
+                params,
+            };
+            let fill_all = Dispatch {
+                kind: PassKind::Fill,
+                level,
+                params: PassParams {
+                    fill_count: self.surface_layout.get(level).map_or(0, |s| s.fill_count),
+                    ..params
+                },
+            };
+            let fills = params.fill_count > 0;
             if level == 0 {
+                if fill_all.params.fill_count > 0 {
+                    out.push(fill_all);
+                }
                 continue;
             }
             if params.jitter_amp != 0 {
@@ -422,6 +537,9 @@ impl SynthPlan {
                     level,
                     params,
                 });
+            }
+            if fills {
+                out.push(fill);
             }
             let finest = level + 1 == self.levels.len();
             let passes = if finest {
@@ -461,7 +579,13 @@ impl SynthPlan {
                         level,
                         params,
                     });
+                    if fills {
+                        out.push(fill);
+                    }
                 }
+            }
+            if fill_all.params.fill_count > fill.params.fill_count {
+                out.push(fill_all);
             }
         }
         let last = self.levels.len() - 1;
