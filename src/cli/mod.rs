@@ -6,6 +6,7 @@ mod analyze;
 mod bench;
 mod eval;
 mod field;
+mod surface;
 mod synth;
 
 use std::io::{IsTerminal, Write};
@@ -52,6 +53,7 @@ pub enum Command {
     Synth(synth::SynthArgs),
     Eval(eval::EvalArgs),
     Bench(bench::BenchArgs),
+    Surface(surface::SurfaceArgs),
 }
 
 /// `--tileable` / `--no-tileable`: force either, or (neither) detect from the seams.
@@ -142,6 +144,7 @@ pub fn main() -> i32 {
         Command::Synth(a) => synth::run(&ui, a),
         Command::Eval(a) => eval::run(&ui, a),
         Command::Bench(a) => bench::run(&ui, a),
+        Command::Surface(a) => surface::run(&ui, a),
     };
     match result {
         Ok(()) => 0,

@@ -411,7 +411,7 @@ fn generate(mesh: &Mesh, opts: &AtlasOptions) -> Result<Atlas> {
         }
         let ratio = n / extent;
         best = Some((verts, idx, chart_of_triangle, chart_count, extent));
-        if (0.97..=1.0).contains(&ratio) {
+        if (0.9..=1.0).contains(&ratio) {
             break;
         }
         // Aim slightly under the atlas so the rescale rarely shrinks the gutter.

@@ -1,0 +1,372 @@
+//! `texsyn surface`: texture a mesh by synthesizing directly in its atlas.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::Instant;
+
+use clap::Args;
+use texsyn::gpu::synth::{ExtraMap, GpuSynthesizer};
+use texsyn::gpu::GpuContext;
+use texsyn::surface::atlas::{AtlasOptions, AtlasSource};
+use texsyn::surface::gltf_io::{self, MaterialImages};
+use texsyn::surface::pipeline::{self, SurfaceOptions};
+use texsyn::surface::render::{self, RenderOptions, SurfaceTexture};
+use texsyn::surface::seams;
+use texsyn::surface::tangent_field::{DirectionSource, ScaleSource, DIRECTION_HELP};
+use texsyn::{AnalysisOptions, SynthParams};
+
+use super::synth::{read_source, Source};
+use super::{check_output_dir, fail, fmt_duration, parse_coherence, parse_randomness, CliResult, Randomness, TileArgs, Ui};
+
+/// Texture a mesh: synthesize in its texture atlas, write a textured .glb
+#[derive(Args, Debug)]
+#[command(
+    long_about = "Texture a mesh (glTF .gltf/.glb) from an exemplar: the texture is synthesized \
+                  directly in the mesh's texture atlas (its TEXCOORD_0 when usable, otherwise one \
+                  built with xatlas), following a tangent field, seamless across chart edges \
+                  through indirection maps. Writes a .glb with the geometry, the atlas uvs and \
+                  the texture as its material."
+)]
+pub struct SurfaceArgs {
+    /// Mesh: .gltf (with its buffers) or .glb; every triangle primitive of the scene
+    pub mesh: PathBuf,
+
+    /// Exemplar image, or an analysis file written by `texsyn analyze`
+    pub exemplar: PathBuf,
+
+    /// Output .glb (written atomically once everything succeeded)
+    #[arg(short, long, value_name = "OUT.glb")]
+    pub output: PathBuf,
+
+    /// Atlas side in texels
+    #[arg(long, value_name = "N", default_value_t = 1024)]
+    pub atlas_size: u32,
+
+    /// World units per exemplar texel: a number, or linear:AX,AY,AZ:S_MIN:S_MAX to vary
+    /// it along an axis. Default: one exemplar texel per atlas texel on average
+    #[arg(long, value_name = "S|SPEC", value_parser = parse_scale)]
+    pub texel_size: Option<ScaleSource>,
+
+    /// Where the exemplar's x axis goes on the surface (see --help)
+    #[arg(long, value_name = "SPEC", default_value = "up", value_parser = parse_direction,
+          long_help = DIRECTION_HELP)]
+    pub field: DirectionSource,
+
+    /// Always build a new atlas (default: keep a usable TEXCOORD_0)
+    #[arg(long, conflicts_with = "keep_uvs")]
+    pub new_atlas: bool,
+
+    /// Keep the mesh's TEXCOORD_0, or fail if it is not a usable atlas
+    #[arg(long)]
+    pub keep_uvs: bool,
+
+    /// Render the textured mesh from several views into this PNG
+    #[arg(long, value_name = "PNG")]
+    pub render: Option<PathBuf>,
+
+    /// Views in the render, and each view's size in pixels
+    #[arg(long, default_value_t = 4)]
+    pub views: u32,
+    #[arg(long, default_value_t = 384)]
+    pub view_size: u32,
+
+    /// Also write the raw colour atlas to this image
+    #[arg(long, value_name = "PNG")]
+    pub atlas_out: Option<PathBuf>,
+
+    /// Magnify 2, 4 or 8 times: synthesize with a downsampled exemplar and read colours
+    /// from the full one (the atlas texture is that many times larger; renders magnify
+    /// in the fragment shader)
+    #[arg(long, value_name = "F", value_parser = parse_magnify)]
+    pub magnify: Option<u32>,
+
+    /// Tangent-space normal map aligned with the exemplar, embedded as the material's
+    /// normal texture (rotated with the field)
+    #[arg(long, value_name = "IMAGE")]
+    pub normal_map: Option<PathBuf>,
+
+    #[arg(long, default_value_t = SynthParams::default().seed)]
+    pub seed: u32,
+    #[arg(long, value_name = "R|R0,R1,...", value_parser = parse_randomness)]
+    pub randomness: Option<Randomness>,
+    #[arg(long, default_value_t = SynthParams::default().passes)]
+    pub passes: u32,
+    #[arg(long, value_name = "C", default_value_t = SynthParams::default().coherence, value_parser = parse_coherence)]
+    pub coherence: f32,
+
+    #[command(flatten)]
+    pub tile: TileArgs,
+}
+
+fn parse_scale(s: &str) -> Result<ScaleSource, String> {
+    s.parse::<ScaleSource>().map_err(|e| e.to_string())
+}
+
+fn parse_direction(s: &str) -> Result<DirectionSource, String> {
+    s.parse::<DirectionSource>().map_err(|e| e.to_string())
+}
+
+fn parse_magnify(s: &str) -> Result<u32, String> {
+    match s {
+        "2" | "4" | "8" => Ok(s.parse().unwrap()),
+        _ => Err(format!("'{s}': the magnification factor must be 2, 4 or 8")),
+    }
+}
+
+pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
+    check_output_dir(&args.output)?;
+    for p in [&args.render, &args.atlas_out].into_iter().flatten() {
+        check_output_dir(p)?;
+    }
+    if args.output.extension().and_then(|e| e.to_str()) != Some("glb") {
+        return Err(fail(format!(
+            "{}: the output is a binary glTF; name it *.glb",
+            args.output.display()
+        )));
+    }
+    if args.views == 0 || args.views > 16 || !(16..=4096).contains(&args.view_size) {
+        return Err(fail("--views must be 1-16 and --view-size 16-4096"));
+    }
+
+    let t = Instant::now();
+    let (mut mesh, load) = gltf_io::load_mesh(&args.mesh)?;
+    ui.info(format!(
+        "mesh: {} ({} vertices, {} triangles, {} primitive(s){}{}{})",
+        args.mesh.display(),
+        mesh.positions.len(),
+        mesh.triangles.len(),
+        load.primitives,
+        if load.skipped_non_triangle > 0 {
+            format!(", {} non-triangle primitive(s) skipped", load.skipped_non_triangle)
+        } else {
+            String::new()
+        },
+        if load.repair.dropped_degenerate > 0 {
+            format!(", {} degenerate triangles dropped", load.repair.dropped_degenerate)
+        } else {
+            String::new()
+        },
+        if load.repair.computed_normals { ", normals computed" } else { "" },
+    ));
+    mesh.validate_and_repair()?;
+    let load_time = t.elapsed();
+
+    let mut source = read_source(&args.exemplar, None, args.tile.get())?;
+    let normal_map = match &args.normal_map {
+        Some(p) => Some(texsyn::image_io::load_exemplar(p)?),
+        None => None,
+    };
+    let mut hi_res = None;
+    if let Some(f) = args.magnify {
+        match source {
+            Source::Analysis(_) => {
+                return Err(fail(
+                    "--magnify needs the exemplar image (its full-resolution colours), not an analysis file",
+                ))
+            }
+            Source::Image(ex) => {
+                let (small, hi) = texsyn::image_io::downsample_exemplar(&ex, f)?;
+                hi_res = Some((hi, small.width * f, small.height * f, f));
+                source = Source::Image(small);
+            }
+        }
+        if normal_map.is_some() {
+            return Err(fail("--magnify cannot be combined with --normal-map (yet)"));
+        }
+    }
+
+    let ctx = GpuContext::headless()?;
+    ui.info(format!("adapter: {}", ctx.describe()));
+    let t = Instant::now();
+    let analysis = match source {
+        Source::Analysis(a) => a,
+        Source::Image(ex) => {
+            texsyn::gpu::synth::check_exemplar_fits(&ctx, ex.width, ex.height, AnalysisOptions::default().k)?;
+            let options = AnalysisOptions {
+                tileable: args.tile.get(),
+                ..AnalysisOptions::default()
+            };
+            texsyn::analysis::analyze(&ex, &options, ui.analysis_progress())?
+        }
+    };
+    let analysis_time = t.elapsed();
+    if let Some(n) = &normal_map {
+        if (n.width, n.height) != (analysis.width, analysis.height) {
+            return Err(fail(format!(
+                "--normal-map is {}x{}, the exemplar {}x{}: they must be aligned",
+                n.width, n.height, analysis.width, analysis.height
+            )));
+        }
+    }
+    let (ex_w, ex_h) = (analysis.width, analysis.height);
+
+    let opts = SurfaceOptions {
+        atlas: AtlasOptions {
+            size: args.atlas_size,
+            source: if args.new_atlas {
+                AtlasSource::Generate
+            } else if args.keep_uvs {
+                AtlasSource::Keep
+            } else {
+                AtlasSource::Auto
+            },
+            ..AtlasOptions::default()
+        },
+        direction: args.field.clone(),
+        scale: args.texel_size.clone(),
+    };
+    ui.progress("preparing the atlas, field and maps...");
+    let t = Instant::now();
+    let prepared = pipeline::prepare(&mesh, analysis.levels.len(), &opts)?;
+    let prepare_time = t.elapsed();
+    ui.end_progress();
+    ui.info(format!(
+        "atlas: {0}x{0}, {1} charts, {2:.0}% covered, {3}",
+        prepared.atlas.size,
+        prepared.atlas.chart_count,
+        prepared.atlas.coverage() * 100.0,
+        if prepared.atlas.generated {
+            format!("built with xatlas ({})", prepared.atlas.note)
+        } else {
+            "the mesh's TEXCOORD_0".to_string()
+        }
+    ));
+    if let Some(s) = prepared.texel_size {
+        ui.info(format!("texel size: {s:.5} world units per exemplar texel"));
+    }
+    let sing = prepared.field.singularities().len();
+    if sing > 0 {
+        ui.info(format!("field: {sing} singular vertices"));
+    }
+    if prepared.report.clamped > 0 {
+        ui.info(format!(
+            "note: {} atlas texels ask for more than 8x stretch; clamped",
+            prepared.report.clamped
+        ));
+    }
+
+    let t = Instant::now();
+    let synthesizer = GpuSynthesizer::new(&ctx, Arc::new(analysis))?;
+    let upload_time = t.elapsed();
+    let base = SynthParams {
+        seed: args.seed,
+        randomness: args.randomness.map(|r| r.0).unwrap_or_default(),
+        passes: args.passes,
+        coherence: args.coherence,
+        ..SynthParams::default()
+    };
+    let extra: Vec<ExtraMap> = normal_map
+        .iter()
+        .map(|n| ExtraMap {
+            pixels: n.colors.clone(),
+            normal: true,
+        })
+        .collect();
+    let t = Instant::now();
+    let (synthesis, maps) = pipeline::synthesize(&ctx, &synthesizer, &prepared, &base, &extra)?;
+    ctx.take_uncaptured_errors()?;
+    let synth_time = t.elapsed();
+    let n = prepared.atlas.size;
+    let seam = seams::seam_report(&prepared.atlas, &synthesis.colors);
+    ui.info(format!(
+        "seams: {} seam edges, colour step across seams {:.2} vs {:.2} between neighbouring texels (ratio {:.2})",
+        seam.seam_edges, seam.seam, seam.interior, seam.ratio
+    ));
+
+    // The texture: the atlas itself, or magnified from the full-resolution exemplar.
+    let to_image = |w: u32, h: u32, px: Vec<u8>| {
+        image::RgbaImage::from_raw(w, h, px).ok_or_else(|| fail("internal: image size mismatch"))
+    };
+    let base_color = match &hi_res {
+        Some((hi, hw, hh, f)) => {
+            let params = pipeline::atlas_params(&prepared, &base);
+            let gpu = synthesizer.synthesize_magnified(&ctx, &params, hi, *hw, *hh, *f)?;
+            let px = gpu.read_rgba8(&ctx)?;
+            to_image(gpu.width, gpu.height, px)?
+        }
+        None => to_image(n, n, synthesis.colors.iter().flatten().copied().collect())?,
+    };
+    let normal = match maps.first() {
+        Some(m) => Some(to_image(n, n, m.iter().flatten().copied().collect())?),
+        None => None,
+    };
+
+    let t = Instant::now();
+    if let Some(r) = &args.render {
+        let ropts = RenderOptions {
+            view_size: args.view_size,
+            views: args.views,
+            ..RenderOptions::default()
+        };
+        let coords: Vec<[f32; 2]>;
+        let jac: Vec<[f32; 4]>;
+        let texture = match &hi_res {
+            Some((hi, hw, hh, f)) => {
+                // Integer exemplar positions are pixel centres in the synthesis.
+                coords = synthesis
+                    .coords_f32()
+                    .iter()
+                    .map(|c| [c[0] + 0.5, c[1] + 0.5])
+                    .collect();
+                jac = pipeline::jacobians_f32(&prepared);
+                SurfaceTexture::Magnified {
+                    coords: &coords,
+                    jacobian: &jac,
+                    width: n,
+                    height: n,
+                    hi_rgba: bytemuck::cast_slice(hi),
+                    hi_width: *hw,
+                    hi_height: *hh,
+                    factor: *f as f32,
+                }
+            }
+            None => SurfaceTexture::Color {
+                rgba: base_color.as_raw(),
+                width: base_color.width(),
+                height: base_color.height(),
+            },
+        };
+        let img = render::render_views(&ctx, &prepared.atlas.mesh, &texture, &ropts)?;
+        texsyn::image_io::save_image_atomic(r, img.width(), img.height(), 4, img.as_raw())?;
+        ui.info(format!("render: {}", r.display()));
+    }
+    let render_time = t.elapsed();
+    if let Some(a) = &args.atlas_out {
+        texsyn::image_io::save_image_atomic(
+            a,
+            base_color.width(),
+            base_color.height(),
+            4,
+            base_color.as_raw(),
+        )?;
+        ui.info(format!("atlas image: {}", a.display()));
+    }
+    let material = MaterialImages {
+        base_color,
+        normal,
+        metallic_roughness: None,
+        occlusion: None,
+    };
+    gltf_io::write_glb(&args.output, &prepared.atlas.mesh, &material)?;
+    ui.info(format!("output: {}", args.output.display()));
+    let _ = (ex_w, ex_h);
+    ui.info(format!(
+        "time: load mesh {}, exemplar analysis {}",
+        fmt_duration(load_time),
+        fmt_duration(analysis_time)
+    ));
+    ui.info(format!(
+        "      preprocessing {} (atlas {}, field {}, Jacobian + indirection maps {})",
+        fmt_duration(prepare_time),
+        fmt_duration(prepared.timings.atlas),
+        fmt_duration(prepared.timings.field),
+        fmt_duration(prepared.timings.maps)
+    ));
+    ui.info(format!(
+        "      GPU upload {}, atlas synthesis + read-back {}, render {}",
+        fmt_duration(upload_time),
+        fmt_duration(synth_time),
+        fmt_duration(render_time)
+    ));
+    Ok(())
+}
