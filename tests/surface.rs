@@ -1,0 +1,287 @@
+//! Surface synthesis in a texture atlas: the indirection maps, GPU = CPU, seams.
+
+use std::sync::{Arc, OnceLock};
+
+use glam::{Vec2, Vec3};
+use texsyn::analysis::{analyze, Analysis, AnalysisOptions, Exemplar};
+use texsyn::gpu::{synth::GpuSynthesizer, GpuContext};
+use texsyn::passes::plan::{PassKind, SynthPlan};
+use texsyn::passes::run_cpu_surface;
+use texsyn::surface::atlas::{build_atlas, AtlasOptions, AtlasSource};
+use texsyn::surface::mesh::Mesh;
+use texsyn::surface::pipeline::{self, SurfaceOptions};
+use texsyn::surface::seams::seam_report;
+use texsyn::SynthParams;
+
+fn ctx() -> &'static GpuContext {
+    static CTX: OnceLock<GpuContext> = OnceLock::new();
+    CTX.get_or_init(|| {
+        GpuContext::headless().expect("a Vulkan adapter (lavapipe) is required for the tests")
+    })
+}
+
+fn crop(w: u32, h: u32) -> Exemplar {
+    let full =
+        texsyn::image_io::load_exemplar(std::path::Path::new("assets/gravel.png")).unwrap();
+    let c = full.channels as usize;
+    let (mut values, mut colors) = (Vec::new(), Vec::new());
+    for y in 0..h as usize {
+        for x in 0..w as usize {
+            let i = y * full.width as usize + x;
+            values.extend_from_slice(&full.values[i * c..(i + 1) * c]);
+            colors.push(full.colors[i]);
+        }
+    }
+    Exemplar {
+        width: w,
+        height: h,
+        channels: full.channels,
+        values,
+        colors,
+    }
+}
+
+fn analysis(size: u32) -> Arc<Analysis> {
+    static CACHE: OnceLock<std::sync::Mutex<Vec<(u32, Arc<Analysis>)>>> = OnceLock::new();
+    let mut c = CACHE.get_or_init(Default::default).lock().unwrap();
+    if let Some((_, a)) = c.iter().find(|(s, _)| *s == size) {
+        return a.clone();
+    }
+    let a = Arc::new(analyze(&crop(size, size), &AnalysisOptions::default(), |_| {}).unwrap());
+    c.push((size, a.clone()));
+    a
+}
+
+fn prepared(mesh: &Mesh, atlas: u32, levels: usize) -> pipeline::PreparedSurface {
+    let mut mesh = mesh.clone();
+    mesh.validate_and_repair().unwrap();
+    let opts = SurfaceOptions {
+        atlas: AtlasOptions {
+            size: atlas,
+            ..AtlasOptions::default()
+        },
+        ..SurfaceOptions::default()
+    };
+    pipeline::prepare(&mesh, levels, &opts).unwrap()
+}
+
+/// Two unit squares side by side in the xz plane (x in [0,1] and [1,2]) as two charts:
+/// the left one laid out as is, the right one rotated 90 degrees and moved elsewhere in
+/// the atlas, so crossing the shared edge needs the unfolding map.
+fn two_chart_plane() -> Mesh {
+    let p = |x: f32, z: f32| Vec3::new(x, 0.0, z);
+    // Left chart: uv = (0.1 + 0.3 x, 0.1 + 0.3 z).
+    let l = |x: f32, z: f32| Vec2::new(0.1 + 0.3 * x, 0.1 + 0.3 * z);
+    // Right chart: rotated, uv = (0.9 - 0.3 z, 0.6 + 0.3 (x - 1)).
+    let r = |x: f32, z: f32| Vec2::new(0.9 - 0.3 * z, 0.6 + 0.3 * (x - 1.0));
+    let pts = [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)];
+    let mut positions = Vec::new();
+    let mut uvs = Vec::new();
+    for &(x, z) in &pts {
+        positions.push(p(x, z));
+        uvs.push(l(x, z));
+    }
+    for &(x, z) in &pts {
+        positions.push(p(x + 1.0, z));
+        uvs.push(r(x + 1.0, z));
+    }
+    // Normals +y; triangles counter-clockwise seen from +y.
+    let tri = |o: u32| [[o, o + 2, o + 1], [o, o + 3, o + 2]];
+    let mut triangles = tri(0).to_vec();
+    triangles.extend(tri(4));
+    Mesh {
+        normals: vec![Vec3::Y; positions.len()],
+        positions,
+        uvs: Some(uvs),
+        tangents: None,
+        triangles,
+    }
+}
+
+#[test]
+fn indirection_lands_on_the_same_surface_point() {
+    let mesh = two_chart_plane();
+    let atlas = build_atlas(
+        &mesh,
+        &AtlasOptions {
+            size: 64,
+            gutter: 5,
+            source: AtlasSource::Keep,
+        },
+    )
+    .unwrap();
+    assert_eq!(atlas.chart_count, 2);
+    let field = texsyn::surface::tangent_field::TangentField::build(
+        &atlas.mesh,
+        None,
+        &texsyn::surface::tangent_field::DirectionSource::Up(Vec3::Z),
+        &texsyn::surface::tangent_field::ScaleSource::Constant(1.0 / 19.2),
+    )
+    .unwrap();
+    let (domain, report) = texsyn::surface::maps::build_domain(&atlas, &field, 1).unwrap();
+    assert!(report.crossed > 0, "{report:?}");
+    let level = &domain.levels[0];
+    let size = 64.0f32;
+    // Atlas texel -> world point, per chart (the inverse of the layouts above).
+    let world_left = |u: Vec2| Vec2::new((u.x / size - 0.1) / 0.3, (u.y / size - 0.1) / 0.3);
+    let world_right = |u: Vec2| Vec2::new(1.0 + (u.y / size - 0.6) / 0.3, (0.9 - u.x / size) / 0.3);
+    let centre = |i: u32| Vec2::new((i % 64) as f32 + 0.5, (i / 64) as f32 + 0.5);
+    let mut checked = 0;
+    for e in &level.fill[..level.band as usize] {
+        let d = centre(e.dst);
+        // Gutter texels just right of the left chart (x beyond its right edge, within
+        // its z range): they stand for points of the right square.
+        let w = world_left(d);
+        if !(w.x > 1.0 && w.x < 1.15 && w.y > 0.05 && w.y < 0.95) {
+            continue;
+        }
+        let src = centre(e.src) + Vec2::new(e.off[0] as f32, e.off[1] as f32) / 16.0;
+        let got = world_right(src);
+        assert!(
+            got.distance(w) < 0.01,
+            "texel {} stands for {w:?} but reads the right chart at {got:?}",
+            e.dst
+        );
+        checked += 1;
+    }
+    assert!(checked >= 10, "only {checked} band texels checked");
+}
+
+#[test]
+fn atlas_synthesis_gpu_matches_cpu() {
+    let a = analysis(32);
+    let prep = prepared(&Mesh::cube(1.0, 2), 64, a.levels.len());
+    let params = pipeline::atlas_params(&prep, &SynthParams::default());
+    let plan = SynthPlan::new(&a, &params).unwrap();
+    let schedule = plan.schedule(&a);
+    assert!(schedule.iter().any(|d| d.kind == PassKind::Fill));
+    let jac = plan.jacobians();
+    let surface = plan.surface_words().0;
+    // Pass by pass at a few points (after fills and corrections), then the whole run.
+    let synth = GpuSynthesizer::new(ctx(), a.clone()).unwrap();
+    let mut cpu = vec![[0i32; 2]; plan.coord_count as usize];
+    let mut done = 0;
+    let checkpoints: Vec<usize> = schedule
+        .iter()
+        .enumerate()
+        .filter(|(i, d)| d.kind == PassKind::Fill && i % 7 == 0)
+        .map(|(i, _)| i + 1)
+        .take(4)
+        .collect();
+    assert!(!checkpoints.is_empty());
+    for &end in &checkpoints {
+        run_cpu_surface(&a, &schedule[done..end], &mut cpu, &jac, &surface);
+        done = end;
+        let gpu = synth.run_prefix(ctx(), &params, end).unwrap();
+        assert!(gpu == cpu, "GPU and CPU differ after dispatch {end}");
+    }
+    let cpu_out = texsyn::passes::synthesize_cpu(&a, &params).unwrap();
+    let gpu_out = synth.synthesize_to_host(ctx(), &params).unwrap();
+    assert_eq!(gpu_out.coords, cpu_out.coords);
+    assert_eq!(gpu_out.colors, cpu_out.colors);
+    // Deterministic: the same bytes again; another seed differs.
+    assert_eq!(synth.synthesize_to_host(ctx(), &params).unwrap().colors, gpu_out.colors);
+    let other = SynthParams { seed: 9, ..params };
+    assert_ne!(synth.synthesize_to_host(ctx(), &other).unwrap().colors, gpu_out.colors);
+}
+
+/// Seam visibility with and without the indirection maps, on meshes with many seams.
+#[test]
+fn seams_are_no_more_visible_than_texel_steps() {
+    let a = analysis(64);
+    let synth = GpuSynthesizer::new(ctx(), a.clone()).unwrap();
+    for (name, mesh) in [
+        ("sphere", Mesh::uv_sphere(1.0, 24, 12)),
+        ("cube", Mesh::cube(1.0, 3)),
+        ("torus", Mesh::torus(1.0, 0.4, 32, 16)),
+    ] {
+        let prep = prepared(&mesh, 128, a.levels.len());
+        let (s, _) =
+            pipeline::synthesize(ctx(), &synth, &prep, &SynthParams::default(), &[]).unwrap();
+        let with = seam_report(&prep.atlas, &s.colors);
+        // The same synthesis with every gutter texel copying itself: no indirection.
+        let mut d = (*prep.domain).clone();
+        for l in &mut d.levels {
+            for e in &mut l.fill {
+                e.src = e.dst;
+                e.off = [0, 0];
+            }
+        }
+        let mut plain = prep.clone();
+        plain.domain = Arc::new(d);
+        let (s2, _) =
+            pipeline::synthesize(ctx(), &synth, &plain, &SynthParams::default(), &[]).unwrap();
+        let without = seam_report(&prep.atlas, &s2.colors);
+        eprintln!("{name}: with indirection {with:?}\n   without {without:?}");
+        assert!(with.seam_edges > 10 && with.samples > 100, "{name}: {with:?}");
+        assert!(with.ratio <= 1.5, "{name}: seam ratio {} > 1.5", with.ratio);
+        assert!(
+            with.ratio < without.ratio,
+            "{name}: indirection does not help ({} vs {})",
+            with.ratio,
+            without.ratio
+        );
+    }
+}
+
+#[test]
+fn open_meshes_and_bad_surface_inputs() {
+    let a = analysis(32);
+    // An open mesh: walks stop at the boundary instead of failing.
+    let mut plane = Mesh::plane(2.0, 2.0, 3);
+    plane.uvs = None;
+    let prep = prepared(&plane, 64, a.levels.len());
+    assert!(prep.report.boundary > 0);
+    let synth = GpuSynthesizer::new(ctx(), a.clone()).unwrap();
+    pipeline::synthesize(ctx(), &synth, &prep, &SynthParams::default(), &[]).unwrap();
+
+    let mut sphere = Mesh::uv_sphere(1.0, 12, 6);
+    sphere.validate_and_repair().unwrap();
+    let bad_size = SurfaceOptions {
+        atlas: AtlasOptions {
+            size: 4,
+            ..AtlasOptions::default()
+        },
+        ..SurfaceOptions::default()
+    };
+    let e = pipeline::prepare(&sphere, 5, &bad_size).unwrap_err().to_string();
+    assert!(e.contains("atlas size"), "{e}");
+    for s in [1e6f32, 0.0, -1.0, f32::NAN] {
+        let opts = SurfaceOptions {
+            atlas: AtlasOptions {
+                size: 64,
+                ..AtlasOptions::default()
+            },
+            scale: Some(texsyn::surface::tangent_field::ScaleSource::Constant(s)),
+            ..SurfaceOptions::default()
+        };
+        assert!(pipeline::prepare(&sphere, 5, &opts).is_err(), "texel size {s}");
+    }
+    let keep = SurfaceOptions {
+        atlas: AtlasOptions {
+            size: 64,
+            source: AtlasSource::Keep,
+            ..AtlasOptions::default()
+        },
+        ..SurfaceOptions::default()
+    };
+    let e = pipeline::prepare(&sphere, 5, &keep).unwrap_err().to_string();
+    assert!(e.contains("TEXCOORD_0"), "{e}");
+    // Overlapping uvs are refused when kept, replaced otherwise.
+    let mut overlapping = two_chart_plane();
+    let uvs = overlapping.uvs.as_mut().unwrap();
+    for i in 4..8 {
+        uvs[i] = uvs[i - 4];
+    }
+    let e = pipeline::prepare(&overlapping, 5, &keep).unwrap_err().to_string();
+    assert!(e.contains("not a usable atlas"), "{e}");
+    let auto = SurfaceOptions {
+        atlas: AtlasOptions {
+            size: 64,
+            ..AtlasOptions::default()
+        },
+        ..SurfaceOptions::default()
+    };
+    let p = pipeline::prepare(&overlapping, 5, &auto).unwrap();
+    assert!(p.atlas.generated && p.atlas.note.contains("TEXCOORD_0"), "{}", p.atlas.note);
+}
