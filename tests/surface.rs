@@ -56,10 +56,7 @@ fn prepared(mesh: &Mesh, atlas: u32, levels: usize) -> pipeline::PreparedSurface
     let mut mesh = mesh.clone();
     mesh.validate_and_repair().unwrap();
     let opts = SurfaceOptions {
-        atlas: AtlasOptions {
-            size: atlas,
-            ..AtlasOptions::default()
-        },
+        atlas: AtlasOptions::for_size(atlas),
         ..SurfaceOptions::default()
     };
     pipeline::prepare(&mesh, levels, &opts).unwrap()

@@ -202,7 +202,6 @@ pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
 
     let opts = SurfaceOptions {
         atlas: AtlasOptions {
-            size: args.atlas_size,
             source: if args.new_atlas {
                 AtlasSource::Generate
             } else if args.keep_uvs {
@@ -210,7 +209,7 @@ pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
             } else {
                 AtlasSource::Auto
             },
-            ..AtlasOptions::default()
+            ..AtlasOptions::for_size(args.atlas_size)
         },
         direction: args.field.clone(),
         scale: args.texel_size.clone(),

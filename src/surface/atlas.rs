@@ -33,9 +33,22 @@ pub struct AtlasOptions {
 
 impl Default for AtlasOptions {
     fn default() -> Self {
+        Self::for_size(1024)
+    }
+}
+
+impl AtlasOptions {
+    /// Options for a `size` atlas: exact indirection bands on the 3 finest levels from
+    /// 512 texels up, 2 from 128, 1 below (smaller atlases cannot spare the gutter).
+    pub fn for_size(size: u32) -> Self {
+        let exact = match size {
+            512.. => 3,
+            128..512 => 2,
+            _ => 1,
+        };
         Self {
-            size: 1024,
-            gutter: default_gutter(3),
+            size,
+            gutter: default_gutter(exact),
             source: AtlasSource::Auto,
         }
     }
@@ -323,7 +336,16 @@ fn generate(mesh: &Mesh, opts: &AtlasOptions) -> Result<Atlas> {
             "the mesh has no surface area to build an atlas on".into(),
         ));
     }
-    let positions: Vec<f32> = mesh.positions.iter().flat_map(|p| p.to_array()).collect();
+    // xatlas works in the mesh's units; normalize so its tolerances see a unit-sized
+    // mesh whatever the modelling scale (uvs do not depend on the scale).
+    let (lo, hi) = mesh.bounding_box();
+    let unit = 1.0 / (hi - lo).length().max(f32::MIN_POSITIVE);
+    let positions: Vec<f32> = mesh
+        .positions
+        .iter()
+        .flat_map(|p| ((*p - lo) * unit).to_array())
+        .collect();
+    let area = area * (unit as f64).powi(2);
     let normals: Vec<f32> = mesh.normals.iter().flat_map(|p| p.to_array()).collect();
     let indices: Vec<u32> = mesh.triangles.iter().flatten().copied().collect();
     let bytes = |v: &[f32]| -> Vec<u8> { bytemuck::cast_slice(v).to_vec() };
