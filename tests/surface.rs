@@ -282,3 +282,107 @@ fn open_meshes_and_bad_surface_inputs() {
     let p = pipeline::prepare(&overlapping, 5, &auto).unwrap();
     assert!(p.atlas.generated && p.atlas.note.contains("TEXCOORD_0"), "{}", p.atlas.note);
 }
+
+mod common;
+
+/// `texsyn surface` end to end on the bundled bunny, and its bad inputs.
+#[test]
+fn surface_cli_end_to_end_and_bad_inputs() {
+    let dir = common::TempDir::new("surface-cli");
+    let bin = env!("CARGO_BIN_EXE_texsyn");
+    let run = |args: &[&str]| {
+        std::process::Command::new(bin)
+            .args(args)
+            .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+            .output()
+            .unwrap()
+    };
+    let out = dir.path("bunny.glb");
+    let render = dir.path("views.png");
+    let atlas = dir.path("atlas.png");
+    let o = run(&[
+        "surface",
+        "assets/meshes/bunny.glb",
+        "assets/gravel.png",
+        "-o",
+        out.to_str().unwrap(),
+        "--atlas-size",
+        "256",
+        "--render",
+        render.to_str().unwrap(),
+        "--views",
+        "2",
+        "--view-size",
+        "128",
+        "--atlas-out",
+        atlas.to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{stderr}");
+    assert!(stderr.contains("seams:") && stderr.contains("preprocessing"), "{stderr}");
+    let views = image::open(&render).unwrap().to_rgba8();
+    assert_eq!(views.dimensions(), (256, 128));
+    // The mesh covers a good part of each view and is textured (not flat).
+    let lum: Vec<f32> = views
+        .pixels()
+        .filter(|p| p.0[..3] != [64, 64, 64])
+        .map(|p| p.0[0] as f32)
+        .collect();
+    assert!(lum.len() > 256 * 128 / 8, "only {} mesh pixels", lum.len());
+    let mean = lum.iter().sum::<f32>() / lum.len() as f32;
+    let var = lum.iter().map(|v| (v - mean).powi(2)).sum::<f32>() / lum.len() as f32;
+    assert!(var > 100.0, "render looks flat (variance {var})");
+    assert_eq!(image::open(&atlas).unwrap().to_rgba8().dimensions(), (256, 256));
+    // The written .glb loads back with the atlas, and passes the Khronos validator.
+    let (mesh, _) = texsyn::surface::gltf_io::load_mesh(&out).unwrap();
+    assert!(mesh.uvs.is_some() && mesh.triangles.len() == 3674);
+    if let Some(report) = common::khronos_validate(&out) {
+        assert!(report.contains(" 0 errors"), "{report}");
+    }
+
+    // Bad inputs: a clear message, non-zero exit, nothing written.
+    let bad = dir.path("bad.glb");
+    std::fs::write(&bad, b"glTF\x02\x00\x00\x00garbage").unwrap();
+    let target = dir.path("never.glb");
+    for (args, expect) in [
+        (vec!["surface", "missing.glb", "assets/gravel.png"], "missing.glb"),
+        (vec!["surface", bad.to_str().unwrap(), "assets/gravel.png"], "bad.glb"),
+        (vec!["surface", "assets/meshes/bunny.glb", "nope.png"], "nope.png"),
+        (
+            vec!["surface", "assets/meshes/bunny.glb", "assets/gravel.png", "--texel-size", "1e9"],
+            "texel size",
+        ),
+        (
+            vec!["surface", "assets/meshes/bunny.glb", "assets/gravel.png", "--atlas-size", "4"],
+            "atlas size",
+        ),
+        (
+            vec!["surface", "assets/meshes/bunny.glb", "assets/gravel.png", "--keep-uvs"],
+            "TEXCOORD_0",
+        ),
+    ] {
+        let mut a = args.clone();
+        a.extend(["-o", target.to_str().unwrap()]);
+        let o = run(&a);
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{args:?} succeeded");
+        assert!(stderr.contains(expect), "{args:?}: {stderr}");
+        assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
+        assert!(!target.exists());
+    }
+    let o = run(&[
+        "surface",
+        "assets/meshes/bunny.glb",
+        "assets/gravel.png",
+        "-o",
+        dir.path("out.png").to_str().unwrap(),
+    ]);
+    assert!(String::from_utf8_lossy(&o.stderr).contains(".glb"));
+    let leftovers: Vec<_> = std::fs::read_dir(&dir.0)
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.contains("tmp") || n.starts_with('.'))
+        .collect();
+    assert!(leftovers.is_empty(), "temporary files left: {leftovers:?}");
+}

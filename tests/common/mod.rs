@@ -1,0 +1,75 @@
+//! Helpers shared by several test files (`mod common;`).
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+pub fn repo() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// Runs the Khronos glTF validator (`tools/validate_gltf.mjs`, npm package
+/// gltf-validator) on `file`. Returns its report, or None when the validator is not
+/// installed and not required (`TEXSYN_REQUIRE_GLTF_VALIDATOR=1`, as in .ci/run, makes a
+/// missing validator a failure). Panics when it reports errors.
+pub fn khronos_validate(file: &Path) -> Option<String> {
+    let required = std::env::var("TEXSYN_REQUIRE_GLTF_VALIDATOR").as_deref() == Ok("1");
+    let skip = |why: String| {
+        if required {
+            panic!(
+                "{why}, and TEXSYN_REQUIRE_GLTF_VALIDATOR=1: install it with \
+                 `(cd tools && npm install --no-audit --no-fund)` (needs node and npm)"
+            );
+        }
+        eprintln!(
+            "note: {why}: skipping the Khronos glTF validator check of {} (install it with \
+             `cd tools && npm install`)",
+            file.display()
+        );
+        None
+    };
+    if !repo().join("tools/node_modules/gltf-validator").is_dir() {
+        return skip("tools/node_modules/gltf-validator is missing".into());
+    }
+    let out = match Command::new("node")
+        .arg(repo().join("tools/validate_gltf.mjs"))
+        .arg(file)
+        .current_dir(repo())
+        .output()
+    {
+        Ok(out) => out,
+        Err(e) => return skip(format!("cannot run node: {e}")),
+    };
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        out.status.success(),
+        "the Khronos glTF validator rejects {} ({}):\n{stdout}{stderr}",
+        file.display(),
+        out.status
+    );
+    Some(stdout)
+}
+
+/// A scratch directory removed on drop.
+pub struct TempDir(pub PathBuf);
+
+impl TempDir {
+    pub fn new(tag: &str) -> Self {
+        static N: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+        let n = N.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let p = std::env::temp_dir().join(format!("texsyn-{tag}-{}-{n}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&p);
+        std::fs::create_dir_all(&p).unwrap();
+        Self(p)
+    }
+    pub fn path(&self, name: &str) -> PathBuf {
+        self.0.join(name)
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
