@@ -27,6 +27,10 @@ pub enum Error {
     InvalidParameter(String),
     #[error("{path}: {reason}")]
     BadAnalysisFile { path: PathBuf, reason: String },
+    /// A mesh file (glTF / GLB) that cannot be used: unreadable structure, missing
+    /// buffers, no triangles, out-of-range data.
+    #[error("{path}: {reason}")]
+    BadMesh { path: PathBuf, reason: String },
     #[error("cannot write {path}: {reason}")]
     Write { path: PathBuf, reason: String },
     #[error("no GPU adapter: {0}. On a machine without a GPU install Mesa's lavapipe (Debian: apt-get install mesa-vulkan-drivers libvulkan1)")]
