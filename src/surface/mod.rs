@@ -2,6 +2,16 @@
 //! tangent field, per-level Jacobian and indirection maps on the host, anisometric
 //! synthesis in the atlas on the GPU, textured glTF out.
 
+pub mod atlas;
+pub mod gltf_io;
+pub mod maps;
+pub mod pipeline;
+pub mod seams;
 pub mod mesh;
+pub mod tangent_field;
+pub mod render;
+
+#[cfg(not(target_env = "msvc"))]
+mod xatlas_link;
 
 pub use mesh::Mesh;
