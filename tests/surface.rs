@@ -340,6 +340,35 @@ fn surface_cli_end_to_end_and_bad_inputs() {
         assert!(report.contains(" 0 errors"), "{report}");
     }
 
+    // Material maps: a normal map made from the exemplar's gradients, the exemplar as
+    // roughness and occlusion; all three end up in the material and the file validates.
+    let grey = image::open("assets/gravel.png").unwrap().to_luma8();
+    let (w, h) = grey.dimensions();
+    let normal_map = image::RgbaImage::from_fn(w, h, |x, y| {
+        let at = |x: i64, y: i64| grey.get_pixel(x.rem_euclid(w as i64) as u32, y.rem_euclid(h as i64) as u32).0[0] as f32 / 255.0;
+        let (x, y) = (x as i64, y as i64);
+        let n = glam::Vec3::new(at(x - 1, y) - at(x + 1, y), at(x, y - 1) - at(x, y + 1), 0.5).normalize();
+        let b = |v: f32| ((v * 0.5 + 0.5) * 255.0).round() as u8;
+        image::Rgba([b(n.x), b(n.y), b(n.z), 255])
+    });
+    let normal_path = dir.path("normal.png");
+    normal_map.save(&normal_path).unwrap();
+    let out2 = dir.path("materials.glb");
+    let o = run(&[
+        "surface", "assets/meshes/bunny.glb", "assets/gravel.png", "-o", out2.to_str().unwrap(),
+        "--atlas-size", "128", "--normal-map", normal_path.to_str().unwrap(),
+        "--roughness-map", "assets/gravel.png", "--occlusion-map", "assets/gravel.png",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let bytes = std::fs::read(&out2).unwrap();
+    let text = String::from_utf8_lossy(&bytes);
+    for key in ["normalTexture", "metallicRoughnessTexture", "occlusionTexture", "TANGENT"] {
+        assert!(text.contains(key), "{key} missing from the material");
+    }
+    if let Some(report) = common::khronos_validate(&out2) {
+        assert!(report.contains(" 0 errors"), "{report}");
+    }
+
     // Bad inputs: a clear message, non-zero exit, nothing written.
     let bad = dir.path("bad.glb");
     std::fs::write(&bad, b"glTF\x02\x00\x00\x00garbage").unwrap();
@@ -359,6 +388,10 @@ fn surface_cli_end_to_end_and_bad_inputs() {
         (
             vec!["surface", "assets/meshes/bunny.glb", "assets/gravel.png", "--keep-uvs"],
             "TEXCOORD_0",
+        ),
+        (
+            vec!["surface", "assets/meshes/bunny.glb", "assets/gravel.png", "--normal-map", "assets/meshes/README.md"],
+            "README.md",
         ),
     ] {
         let mut a = args.clone();

@@ -85,6 +85,16 @@ pub struct SurfaceArgs {
     #[arg(long, value_name = "IMAGE")]
     pub normal_map: Option<PathBuf>,
 
+    /// Roughness map aligned with the exemplar (grey; red channel used), embedded as the
+    /// material's metallic-roughness texture (roughness in green, metallic 0)
+    #[arg(long, value_name = "IMAGE")]
+    pub roughness_map: Option<PathBuf>,
+
+    /// Ambient-occlusion map aligned with the exemplar (grey; red channel used),
+    /// embedded as the material's occlusion texture
+    #[arg(long, value_name = "IMAGE")]
+    pub occlusion_map: Option<PathBuf>,
+
     #[arg(long, default_value_t = SynthParams::default().seed)]
     pub seed: u32,
     #[arg(long, value_name = "R|R0,R1,...", value_parser = parse_randomness)]
@@ -152,10 +162,18 @@ pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
     let load_time = t.elapsed();
 
     let mut source = read_source(&args.exemplar, None, args.tile.get())?;
-    let normal_map = match &args.normal_map {
-        Some(p) => Some(texsyn::image_io::load_exemplar(p)?),
-        None => None,
-    };
+    // Material maps, aligned with the exemplar: (normal?, image) in material order.
+    let mut material_maps = Vec::new();
+    for (path, normal) in [
+        (&args.normal_map, true),
+        (&args.roughness_map, false),
+        (&args.occlusion_map, false),
+    ] {
+        material_maps.push(match path {
+            Some(p) => Some((texsyn::image_io::load_exemplar(p)?, normal, p.clone())),
+            None => None,
+        });
+    }
     let mut hi_res = None;
     if let Some(f) = args.magnify {
         match source {
@@ -170,8 +188,10 @@ pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
                 source = Source::Image(small);
             }
         }
-        if normal_map.is_some() {
-            return Err(fail("--magnify cannot be combined with --normal-map (yet)"));
+        if material_maps.iter().any(Option::is_some) {
+            return Err(fail(
+                "--magnify cannot be combined with material maps (--normal-map, --roughness-map, --occlusion-map) yet",
+            ));
         }
     }
 
@@ -190,11 +210,15 @@ pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
         }
     };
     let analysis_time = t.elapsed();
-    if let Some(n) = &normal_map {
+    for (n, _, path) in material_maps.iter().flatten() {
         if (n.width, n.height) != (analysis.width, analysis.height) {
             return Err(fail(format!(
-                "--normal-map is {}x{}, the exemplar {}x{}: they must be aligned",
-                n.width, n.height, analysis.width, analysis.height
+                "{} is {}x{}, the exemplar {}x{}: material maps must be aligned with it",
+                path.display(),
+                n.width,
+                n.height,
+                analysis.width,
+                analysis.height
             )));
         }
     }
@@ -254,11 +278,12 @@ pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
         coherence: args.coherence,
         ..SynthParams::default()
     };
-    let extra: Vec<ExtraMap> = normal_map
+    let extra: Vec<ExtraMap> = material_maps
         .iter()
-        .map(|n| ExtraMap {
+        .flatten()
+        .map(|(n, normal, _)| ExtraMap {
             pixels: n.colors.clone(),
-            normal: true,
+            normal: *normal,
         })
         .collect();
     let t = Instant::now();
@@ -285,10 +310,19 @@ pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
         }
         None => to_image(n, n, synthesis.colors.iter().flatten().copied().collect())?,
     };
-    let normal = match maps.first() {
-        Some(m) => Some(to_image(n, n, m.iter().flatten().copied().collect())?),
-        None => None,
+    // The synthesized maps, in the order of `material_maps`' present entries.
+    let mut synthesized = maps.into_iter();
+    let mut next_map = |present: bool, pack: fn([u8; 4]) -> [u8; 4]| -> CliResult<Option<image::RgbaImage>> {
+        if !present {
+            return Ok(None);
+        }
+        let m = synthesized.next().ok_or_else(|| fail("internal: missing material map"))?;
+        Ok(Some(to_image(n, n, m.into_iter().flat_map(pack).collect())?))
     };
+    let normal = next_map(material_maps[0].is_some(), |p| p)?;
+    // glTF packs roughness in green (metallic in blue, 0 here), occlusion in red.
+    let metallic_roughness = next_map(material_maps[1].is_some(), |p| [0, p[0], 0, 255])?;
+    let occlusion = next_map(material_maps[2].is_some(), |p| [p[0], p[0], p[0], 255])?;
 
     let t = Instant::now();
     if let Some(r) = &args.render {
@@ -343,8 +377,8 @@ pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
     let material = MaterialImages {
         base_color,
         normal,
-        metallic_roughness: None,
-        occlusion: None,
+        metallic_roughness,
+        occlusion,
     };
     gltf_io::write_glb(&args.output, &prepared.atlas.mesh, &material)?;
     ui.info(format!("output: {}", args.output.display()));
