@@ -12,8 +12,8 @@ pub mod image_io;
 pub mod passes;
 pub mod quality;
 pub mod session;
-pub mod surface;
 mod shader_preprocess;
+pub mod surface;
 
 pub use analysis::{Analysis, AnalysisOptions, Exemplar};
 pub use error::{Error, Result};

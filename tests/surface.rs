@@ -21,8 +21,7 @@ fn ctx() -> &'static GpuContext {
 }
 
 fn crop(w: u32, h: u32) -> Exemplar {
-    let full =
-        texsyn::image_io::load_exemplar(std::path::Path::new("assets/gravel.png")).unwrap();
+    let full = texsyn::image_io::load_exemplar(std::path::Path::new("assets/gravel.png")).unwrap();
     let c = full.channels as usize;
     let (mut values, mut colors) = (Vec::new(), Vec::new());
     for y in 0..h as usize {
@@ -177,9 +176,15 @@ fn atlas_synthesis_gpu_matches_cpu() {
     assert_eq!(gpu_out.coords, cpu_out.coords);
     assert_eq!(gpu_out.colors, cpu_out.colors);
     // Deterministic: the same bytes again; another seed differs.
-    assert_eq!(synth.synthesize_to_host(ctx(), &params).unwrap().colors, gpu_out.colors);
+    assert_eq!(
+        synth.synthesize_to_host(ctx(), &params).unwrap().colors,
+        gpu_out.colors
+    );
     let other = SynthParams { seed: 9, ..params };
-    assert_ne!(synth.synthesize_to_host(ctx(), &other).unwrap().colors, gpu_out.colors);
+    assert_ne!(
+        synth.synthesize_to_host(ctx(), &other).unwrap().colors,
+        gpu_out.colors
+    );
 }
 
 /// Seam visibility with and without the indirection maps, on meshes with many seams.
@@ -210,7 +215,10 @@ fn seams_are_no_more_visible_than_texel_steps() {
             pipeline::synthesize(ctx(), &synth, &plain, &SynthParams::default(), &[]).unwrap();
         let without = seam_report(&prep.atlas, &s2.colors);
         eprintln!("{name}: with indirection {with:?}\n   without {without:?}");
-        assert!(with.seam_edges > 10 && with.samples > 100, "{name}: {with:?}");
+        assert!(
+            with.seam_edges > 10 && with.samples > 100,
+            "{name}: {with:?}"
+        );
         assert!(with.ratio <= 1.5, "{name}: seam ratio {} > 1.5", with.ratio);
         assert!(
             with.ratio < without.ratio,
@@ -241,7 +249,9 @@ fn open_meshes_and_bad_surface_inputs() {
         },
         ..SurfaceOptions::default()
     };
-    let e = pipeline::prepare(&sphere, 5, &bad_size).unwrap_err().to_string();
+    let e = pipeline::prepare(&sphere, 5, &bad_size)
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("atlas size"), "{e}");
     for s in [1e6f32, 0.0, -1.0, f32::NAN] {
         let opts = SurfaceOptions {
@@ -252,7 +262,10 @@ fn open_meshes_and_bad_surface_inputs() {
             scale: Some(texsyn::surface::tangent_field::ScaleSource::Constant(s)),
             ..SurfaceOptions::default()
         };
-        assert!(pipeline::prepare(&sphere, 5, &opts).is_err(), "texel size {s}");
+        assert!(
+            pipeline::prepare(&sphere, 5, &opts).is_err(),
+            "texel size {s}"
+        );
     }
     let keep = SurfaceOptions {
         atlas: AtlasOptions {
@@ -262,7 +275,9 @@ fn open_meshes_and_bad_surface_inputs() {
         },
         ..SurfaceOptions::default()
     };
-    let e = pipeline::prepare(&sphere, 5, &keep).unwrap_err().to_string();
+    let e = pipeline::prepare(&sphere, 5, &keep)
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("TEXCOORD_0"), "{e}");
     // Overlapping uvs are refused when kept, replaced otherwise.
     let mut overlapping = two_chart_plane();
@@ -270,7 +285,9 @@ fn open_meshes_and_bad_surface_inputs() {
     for i in 4..8 {
         uvs[i] = uvs[i - 4];
     }
-    let e = pipeline::prepare(&overlapping, 5, &keep).unwrap_err().to_string();
+    let e = pipeline::prepare(&overlapping, 5, &keep)
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("not a usable atlas"), "{e}");
     let auto = SurfaceOptions {
         atlas: AtlasOptions {
@@ -280,7 +297,11 @@ fn open_meshes_and_bad_surface_inputs() {
         ..SurfaceOptions::default()
     };
     let p = pipeline::prepare(&overlapping, 5, &auto).unwrap();
-    assert!(p.atlas.generated && p.atlas.note.contains("TEXCOORD_0"), "{}", p.atlas.note);
+    assert!(
+        p.atlas.generated && p.atlas.note.contains("TEXCOORD_0"),
+        "{}",
+        p.atlas.note
+    );
 }
 
 mod common;
@@ -319,7 +340,10 @@ fn surface_cli_end_to_end_and_bad_inputs() {
     ]);
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{stderr}");
-    assert!(stderr.contains("seams:") && stderr.contains("preprocessing"), "{stderr}");
+    assert!(
+        stderr.contains("seams:") && stderr.contains("preprocessing"),
+        "{stderr}"
+    );
     let views = image::open(&render).unwrap().to_rgba8();
     assert_eq!(views.dimensions(), (256, 128));
     // The mesh covers a good part of each view and is textured (not flat).
@@ -332,7 +356,10 @@ fn surface_cli_end_to_end_and_bad_inputs() {
     let mean = lum.iter().sum::<f32>() / lum.len() as f32;
     let var = lum.iter().map(|v| (v - mean).powi(2)).sum::<f32>() / lum.len() as f32;
     assert!(var > 100.0, "render looks flat (variance {var})");
-    assert_eq!(image::open(&atlas).unwrap().to_rgba8().dimensions(), (256, 256));
+    assert_eq!(
+        image::open(&atlas).unwrap().to_rgba8().dimensions(),
+        (256, 256)
+    );
     // The written .glb loads back with the atlas, and passes the Khronos validator.
     let (mesh, _) = texsyn::surface::gltf_io::load_mesh(&out).unwrap();
     assert!(mesh.uvs.is_some() && mesh.triangles.len() == 3674);
@@ -345,9 +372,18 @@ fn surface_cli_end_to_end_and_bad_inputs() {
     let grey = image::open("assets/gravel.png").unwrap().to_luma8();
     let (w, h) = grey.dimensions();
     let normal_map = image::RgbaImage::from_fn(w, h, |x, y| {
-        let at = |x: i64, y: i64| grey.get_pixel(x.rem_euclid(w as i64) as u32, y.rem_euclid(h as i64) as u32).0[0] as f32 / 255.0;
+        let at = |x: i64, y: i64| {
+            grey.get_pixel(x.rem_euclid(w as i64) as u32, y.rem_euclid(h as i64) as u32)
+                .0[0] as f32
+                / 255.0
+        };
         let (x, y) = (x as i64, y as i64);
-        let n = glam::Vec3::new(at(x - 1, y) - at(x + 1, y), at(x, y - 1) - at(x, y + 1), 0.5).normalize();
+        let n = glam::Vec3::new(
+            at(x - 1, y) - at(x + 1, y),
+            at(x, y - 1) - at(x, y + 1),
+            0.5,
+        )
+        .normalize();
         let b = |v: f32| ((v * 0.5 + 0.5) * 255.0).round() as u8;
         image::Rgba([b(n.x), b(n.y), b(n.z), 255])
     });
@@ -355,14 +391,29 @@ fn surface_cli_end_to_end_and_bad_inputs() {
     normal_map.save(&normal_path).unwrap();
     let out2 = dir.path("materials.glb");
     let o = run(&[
-        "surface", "assets/meshes/bunny.glb", "assets/gravel.png", "-o", out2.to_str().unwrap(),
-        "--atlas-size", "128", "--normal-map", normal_path.to_str().unwrap(),
-        "--roughness-map", "assets/gravel.png", "--occlusion-map", "assets/gravel.png",
+        "surface",
+        "assets/meshes/bunny.glb",
+        "assets/gravel.png",
+        "-o",
+        out2.to_str().unwrap(),
+        "--atlas-size",
+        "128",
+        "--normal-map",
+        normal_path.to_str().unwrap(),
+        "--roughness-map",
+        "assets/gravel.png",
+        "--occlusion-map",
+        "assets/gravel.png",
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let bytes = std::fs::read(&out2).unwrap();
     let text = String::from_utf8_lossy(&bytes);
-    for key in ["normalTexture", "metallicRoughnessTexture", "occlusionTexture", "TANGENT"] {
+    for key in [
+        "normalTexture",
+        "metallicRoughnessTexture",
+        "occlusionTexture",
+        "TANGENT",
+    ] {
         assert!(text.contains(key), "{key} missing from the material");
     }
     if let Some(report) = common::khronos_validate(&out2) {
@@ -374,23 +425,55 @@ fn surface_cli_end_to_end_and_bad_inputs() {
     std::fs::write(&bad, b"glTF\x02\x00\x00\x00garbage").unwrap();
     let target = dir.path("never.glb");
     for (args, expect) in [
-        (vec!["surface", "missing.glb", "assets/gravel.png"], "missing.glb"),
-        (vec!["surface", bad.to_str().unwrap(), "assets/gravel.png"], "bad.glb"),
-        (vec!["surface", "assets/meshes/bunny.glb", "nope.png"], "nope.png"),
         (
-            vec!["surface", "assets/meshes/bunny.glb", "assets/gravel.png", "--texel-size", "1e9"],
+            vec!["surface", "missing.glb", "assets/gravel.png"],
+            "missing.glb",
+        ),
+        (
+            vec!["surface", bad.to_str().unwrap(), "assets/gravel.png"],
+            "bad.glb",
+        ),
+        (
+            vec!["surface", "assets/meshes/bunny.glb", "nope.png"],
+            "nope.png",
+        ),
+        (
+            vec![
+                "surface",
+                "assets/meshes/bunny.glb",
+                "assets/gravel.png",
+                "--texel-size",
+                "1e9",
+            ],
             "texel size",
         ),
         (
-            vec!["surface", "assets/meshes/bunny.glb", "assets/gravel.png", "--atlas-size", "4"],
+            vec![
+                "surface",
+                "assets/meshes/bunny.glb",
+                "assets/gravel.png",
+                "--atlas-size",
+                "4",
+            ],
             "atlas size",
         ),
         (
-            vec!["surface", "assets/meshes/bunny.glb", "assets/gravel.png", "--keep-uvs"],
+            vec![
+                "surface",
+                "assets/meshes/bunny.glb",
+                "assets/gravel.png",
+                "--keep-uvs",
+            ],
             "TEXCOORD_0",
         ),
         (
-            vec!["surface", "assets/meshes/bunny.glb", "assets/gravel.png", "--normal-map", "assets/meshes/README.md"],
+            vec![
+                "surface",
+                "assets/meshes/bunny.glb",
+                "assets/gravel.png",
+                "--normal-map",
+                "assets/meshes/README.md",
+            ],
             "README.md",
         ),
     ] {

@@ -16,7 +16,10 @@ use texsyn::surface::tangent_field::{DirectionSource, ScaleSource, DIRECTION_HEL
 use texsyn::{AnalysisOptions, SynthParams};
 
 use super::synth::{read_source, Source};
-use super::{check_output_dir, fail, fmt_duration, parse_coherence, parse_randomness, CliResult, Randomness, TileArgs, Ui};
+use super::{
+    check_output_dir, fail, fmt_duration, parse_coherence, parse_randomness, CliResult, Randomness,
+    TileArgs, Ui,
+};
 
 /// Texture a mesh: synthesize in its texture atlas, write a textured .glb
 #[derive(Args, Debug)]
@@ -147,16 +150,26 @@ pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
         mesh.triangles.len(),
         load.primitives,
         if load.skipped_non_triangle > 0 {
-            format!(", {} non-triangle primitive(s) skipped", load.skipped_non_triangle)
+            format!(
+                ", {} non-triangle primitive(s) skipped",
+                load.skipped_non_triangle
+            )
         } else {
             String::new()
         },
         if load.repair.dropped_degenerate > 0 {
-            format!(", {} degenerate triangles dropped", load.repair.dropped_degenerate)
+            format!(
+                ", {} degenerate triangles dropped",
+                load.repair.dropped_degenerate
+            )
         } else {
             String::new()
         },
-        if load.repair.computed_normals { ", normals computed" } else { "" },
+        if load.repair.computed_normals {
+            ", normals computed"
+        } else {
+            ""
+        },
     ));
     mesh.validate_and_repair()?;
     let load_time = t.elapsed();
@@ -201,7 +214,12 @@ pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
     let analysis = match source {
         Source::Analysis(a) => a,
         Source::Image(ex) => {
-            texsyn::gpu::synth::check_exemplar_fits(&ctx, ex.width, ex.height, AnalysisOptions::default().k)?;
+            texsyn::gpu::synth::check_exemplar_fits(
+                &ctx,
+                ex.width,
+                ex.height,
+                AnalysisOptions::default().k,
+            )?;
             let options = AnalysisOptions {
                 tileable: args.tile.get(),
                 ..AnalysisOptions::default()
@@ -312,13 +330,20 @@ pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
     };
     // The synthesized maps, in the order of `material_maps`' present entries.
     let mut synthesized = maps.into_iter();
-    let mut next_map = |present: bool, pack: fn([u8; 4]) -> [u8; 4]| -> CliResult<Option<image::RgbaImage>> {
-        if !present {
-            return Ok(None);
-        }
-        let m = synthesized.next().ok_or_else(|| fail("internal: missing material map"))?;
-        Ok(Some(to_image(n, n, m.into_iter().flat_map(pack).collect())?))
-    };
+    let mut next_map =
+        |present: bool, pack: fn([u8; 4]) -> [u8; 4]| -> CliResult<Option<image::RgbaImage>> {
+            if !present {
+                return Ok(None);
+            }
+            let m = synthesized
+                .next()
+                .ok_or_else(|| fail("internal: missing material map"))?;
+            Ok(Some(to_image(
+                n,
+                n,
+                m.into_iter().flat_map(pack).collect(),
+            )?))
+        };
     let normal = next_map(material_maps[0].is_some(), |p| p)?;
     // glTF packs roughness in green (metallic in blue, 0 here), occlusion in red.
     let metallic_roughness = next_map(material_maps[1].is_some(), |p| [0, p[0], 0, 255])?;

@@ -431,10 +431,7 @@ impl GpuSynthesizer {
                             usage: wgpu::BufferUsages::STORAGE,
                         })
                 };
-                let jac = init(
-                    "texsyn jacobians",
-                    bytemuck::cast_slice(&plan.jacobians()),
-                );
+                let jac = init("texsyn jacobians", bytemuck::cast_slice(&plan.jacobians()));
                 let surface = init(
                     "texsyn atlas surface",
                     bytemuck::cast_slice(&plan.surface_words().0),

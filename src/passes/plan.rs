@@ -311,7 +311,11 @@ impl SynthPlan {
                         lp.size
                     )));
                 }
-                if dl.fill.iter().any(|e| e.dst as usize >= n || e.src as usize >= n) {
+                if dl
+                    .fill
+                    .iter()
+                    .any(|e| e.dst as usize >= n || e.src as usize >= n)
+                {
                     return Err(Error::InvalidParameter(
                         "atlas domain indirection entry out of range".into(),
                     ));
@@ -478,10 +482,7 @@ impl Dispatch {
             PassKind::Gather | PassKind::GatherAniso => {
                 [p.window_size[0] as u32, p.window_size[1] as u32]
             }
-            PassKind::Fill => [
-                p.fill_count.min(FILL_ROW),
-                p.fill_count.div_ceil(FILL_ROW),
-            ],
+            PassKind::Fill => [p.fill_count.min(FILL_ROW), p.fill_count.div_ceil(FILL_ROW)],
         }
     }
 }

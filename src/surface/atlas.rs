@@ -210,7 +210,13 @@ fn check_existing(mesh: &Mesh, opts: &AtlasOptions) -> std::result::Result<Atlas
     }
     let chart_raster: Vec<u32> = ids
         .iter()
-        .map(|&t| if t == NONE { NONE } else { atlas.chart_of_triangle[t as usize] })
+        .map(|&t| {
+            if t == NONE {
+                NONE
+            } else {
+                atlas.chart_of_triangle[t as usize]
+            }
+        })
         .collect();
     if let Some(gap) = narrowest_gap(&chart_raster, opts.size, opts.gutter) {
         return Err(format!(
@@ -365,7 +371,11 @@ fn generate(mesh: &Mesh, opts: &AtlasOptions) -> Result<Atlas> {
             vertex_count: mesh.positions.len() as u32,
             vertex_position_data: &pos_bytes,
             vertex_position_stride: 12,
-            vertex_normal_data: if normals.len() == positions.len() { &nrm_bytes } else { &[] },
+            vertex_normal_data: if normals.len() == positions.len() {
+                &nrm_bytes
+            } else {
+                &[]
+            },
             vertex_normal_stride: 12,
             index_count: indices.len() as u32,
             index_data: &idx_bytes,

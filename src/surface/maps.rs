@@ -345,7 +345,11 @@ fn walk(
         for j in 0..3 {
             if bx[j] < 0.0 {
                 let denom = bp[j] - bx[j];
-                let s = if denom > 0.0 { (bp[j] / denom).max(0.0) } else { 0.0 };
+                let s = if denom > 0.0 {
+                    (bp[j] / denom).max(0.0)
+                } else {
+                    0.0
+                };
                 if s < exit_t {
                     exit_t = s;
                     exit_corner = j;
@@ -367,9 +371,13 @@ fn walk(
         let (a, b) = (edge, (edge + 1) % 3);
         let nt = &tris[next];
         // Corners of `next` on the shared edge, by position.
-        let find = |q: Vec3| (0..3).min_by(|&i, &j| {
-            nt.p[i].distance_squared(q).total_cmp(&nt.p[j].distance_squared(q))
-        });
+        let find = |q: Vec3| {
+            (0..3).min_by(|&i, &j| {
+                nt.p[i]
+                    .distance_squared(q)
+                    .total_cmp(&nt.p[j].distance_squared(q))
+            })
+        };
         let (na, nb) = (find(tri.p[a]).unwrap(), find(tri.p[b]).unwrap());
         let nc = 3 - na - nb;
         let same_chart = chart_of_triangle[t] == chart_of_triangle[next];

@@ -5,11 +5,11 @@
 pub mod atlas;
 pub mod gltf_io;
 pub mod maps;
-pub mod pipeline;
-pub mod seams;
 pub mod mesh;
-pub mod tangent_field;
+pub mod pipeline;
 pub mod render;
+pub mod seams;
+pub mod tangent_field;
 
 #[cfg(not(target_env = "msvc"))]
 mod xatlas_link;

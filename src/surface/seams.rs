@@ -116,9 +116,8 @@ pub fn seam_report(atlas: &Atlas, colors: &[[u8; 4]]) -> SeamReport {
             let (ua, ub) = (uvs[a as usize] * s, uvs[b as usize] * s);
             let (ua2, ub2) = (uvs[a2 as usize] * s, uvs[b2 as usize] * s);
             let (c1, c2) = (atlas.chart_of_triangle[t], atlas.chart_of_triangle[t2]);
-            let cut = c1 != c2
-                || ua.distance_squared(ua2) > 1e-6
-                || ub.distance_squared(ub2) > 1e-6;
+            let cut =
+                c1 != c2 || ua.distance_squared(ua2) > 1e-6 || ub.distance_squared(ub2) > 1e-6;
             if !cut {
                 continue;
             }
