@@ -10,7 +10,12 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let abs_p = params.origin + q;
-    let i = params.coord_base + u32(q.y * params.size.x + q.x);
+    let t = u32(q.y * params.size.x + q.x);
+    let i = params.coord_base + t;
+    // Advection: only the pixels the distortion pass flagged are upsampled again.
+    if ((params.flag_base | u32(opaque)) != 0u && coords[params.flag_base + t].x == 0) {
+        return;
+    }
     var c = vec2<i32>(0);
     if (params.parent_size.x > 0) {
         let pp = clamp((abs_p >> vec2<u32>(1u)) - params.parent_origin, vec2<i32>(0), params.parent_size - vec2<i32>(1));

@@ -7,6 +7,7 @@
 pub mod analysis;
 pub mod error;
 pub mod field;
+pub mod flow;
 pub mod gpu;
 pub mod image_io;
 pub mod passes;

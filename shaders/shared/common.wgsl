@@ -42,7 +42,11 @@ struct Params {
     // Fill pass: indirection entries of this level (4 words each from surface[fill_base]).
     fill_base: u32,
     fill_count: u32,
-    _pad3: u32,
+    // Advection (src/passes/advect.rs).
+    flag_base: u32,
+    window_origin: vec2<i32>,
+    distortion_max: u32,
+    steps: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: Params;
@@ -75,6 +79,10 @@ var<private> opaque: i32;
 // Atlas synthesis (src/passes/fill.rs): per level, the chart mask (one bit per region
 // texel) and the indirection entries. A 16-byte placeholder otherwise.
 @group(0) @binding(9) var<storage, read> surface: array<u32>;
+
+// Advection: velocity per output-window pixel, in 1/16 pixel per frame (vec2<i32>).
+// A placeholder otherwise.
+@group(0) @binding(10) var<storage, read> velocity: array<vec2<i32>>;
 
 // Whether region texel t (index within the level) lies inside a chart; always true
 // outside atlas synthesis.

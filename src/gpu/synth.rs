@@ -70,7 +70,7 @@ impl GpuSynthesis {
 }
 
 /// An extra map gathered through the synthesized coordinates (material sets).
-struct MapTarget<'a> {
+pub(crate) struct MapTarget<'a> {
     colors: &'a wgpu::Buffer,
     view: &'a wgpu::TextureView,
     normal: bool,
@@ -110,6 +110,11 @@ pub struct GpuSynthesizer {
     gather_map: wgpu::ComputePipeline,
     magnify: wgpu::ComputePipeline,
     fill: wgpu::ComputePipeline,
+    advect: wgpu::ComputePipeline,
+    advect_copy: wgpu::ComputePipeline,
+    distortion: wgpu::ComputePipeline,
+    /// 16-byte stand-in for the velocity binding outside advection.
+    no_velocity: wgpu::Buffer,
     et: wgpu::Buffer,
     qe: wgpu::Buffer,
     offsets: wgpu::Buffer,
@@ -227,6 +232,7 @@ impl GpuSynthesizer {
             entries.push(storage_entry(1, false));
             entries.push(storage_entry(8, true));
             entries.push(storage_entry(9, true));
+            entries.push(storage_entry(10, true));
             for b in [2, 3, 4, 6] {
                 entries.push(storage_entry(b, true));
             }
@@ -285,6 +291,10 @@ impl GpuSynthesizer {
                 gather_map: pipeline(&shaders::GATHER_MAP),
                 magnify: pipeline(&shaders::MAGNIFY),
                 fill: pipeline(&shaders::FILL),
+                advect: pipeline(&shaders::ADVECT),
+                advect_copy: pipeline(&shaders::ADVECT_COPY),
+                distortion: pipeline(&shaders::DISTORTION),
+                no_velocity: init("texsyn no velocity", &[0u8; 16]),
                 layout,
                 et,
                 qe,
@@ -387,10 +397,34 @@ impl GpuSynthesizer {
         clear: bool,
         maps: &[MapTarget<'_>],
     ) -> wgpu::Buffer {
-        let guard = self.scratch_for(ctx, plan);
-        let scratch = guard.as_ref().unwrap();
+        self.record_with(ctx, encoder, plan, schedule, target, clear, maps, None)
+    }
+
+    /// [`Self::record`] on the caller's coordinate and velocity buffers (advection keeps
+    /// its coordinates between frames) instead of the shared scratch buffer.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn record_with(
+        &self,
+        ctx: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        plan: &SynthPlan,
+        schedule: &[Dispatch],
+        target: &wgpu::TextureView,
+        clear: bool,
+        maps: &[MapTarget<'_>],
+        state: Option<(&wgpu::Buffer, &wgpu::Buffer)>,
+    ) -> wgpu::Buffer {
+        let guard;
+        let coords_buffer = match state {
+            Some((coords, _)) => coords,
+            None => {
+                guard = self.scratch_for(ctx, plan);
+                &guard.as_ref().unwrap().coords
+            }
+        };
+        let velocity_buffer = state.map_or(&self.no_velocity, |(_, v)| v);
         if clear {
-            encoder.clear_buffer(&scratch.coords, 0, None);
+            encoder.clear_buffer(coords_buffer, 0, None);
         }
         // Map gathers run after the whole schedule with the gather's parameters.
         let gather_params = schedule.last().map(|d| d.params).unwrap_or_default();
@@ -465,7 +499,7 @@ impl GpuSynthesizer {
                     },
                     wgpu::BindGroupEntry {
                         binding: 1,
-                        resource: scratch.coords.as_entire_binding(),
+                        resource: coords_buffer.as_entire_binding(),
                     },
                     wgpu::BindGroupEntry {
                         binding: 2,
@@ -503,6 +537,10 @@ impl GpuSynthesizer {
                         binding: 9,
                         resource: surface.as_entire_binding(),
                     },
+                    wgpu::BindGroupEntry {
+                        binding: 10,
+                        resource: velocity_buffer.as_entire_binding(),
+                    },
                 ],
             })
         };
@@ -522,6 +560,9 @@ impl GpuSynthesizer {
                     PassKind::CorrectAniso => &self.correct_aniso,
                     PassKind::GatherAniso => &self.gather_aniso,
                     PassKind::Fill => &self.fill,
+                    PassKind::AdvectCopy => &self.advect_copy,
+                    PassKind::Advect => &self.advect,
+                    PassKind::Distortion => &self.distortion,
                 };
                 let [tx, ty] = d.threads();
                 if tx == 0 || ty == 0 {
@@ -559,10 +600,10 @@ impl GpuSynthesizer {
                 pass.dispatch_workgroups(tx.div_ceil(8), ty.div_ceil(8), 1);
             }
         }
-        scratch.coords.clone()
+        coords_buffer.clone()
     }
 
-    fn output_texture(&self, ctx: &GpuContext, width: u32, height: u32) -> wgpu::Texture {
+    pub(crate) fn output_texture(&self, ctx: &GpuContext, width: u32, height: u32) -> wgpu::Texture {
         ctx.device.create_texture(&wgpu::TextureDescriptor {
             label: Some("texsyn output"),
             size: wgpu::Extent3d {
@@ -920,14 +961,14 @@ pub fn check_exemplar_fits(ctx: &GpuContext, width: u32, height: u32, k: u32) ->
     Ok(())
 }
 
-fn wait(ctx: &GpuContext) -> Result<()> {
+pub(crate) fn wait(ctx: &GpuContext) -> Result<()> {
     ctx.device
         .poll(wgpu::PollType::wait_indefinitely())
         .map(|_| ())
         .map_err(|e| Error::Gpu(format!("waiting for the GPU: {e}")))
 }
 
-fn read_buffer(ctx: &GpuContext, buffer: &wgpu::Buffer) -> Result<Vec<u8>> {
+pub(crate) fn read_buffer(ctx: &GpuContext, buffer: &wgpu::Buffer) -> Result<Vec<u8>> {
     let (tx, rx) = std::sync::mpsc::channel();
     buffer.map_async(wgpu::MapMode::Read, .., move |r| {
         let _ = tx.send(r);

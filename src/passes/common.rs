@@ -71,7 +71,16 @@ pub struct PassParams {
     /// `fill_base` of the surface buffer (4 words each, see `fill.rs`).
     pub fill_base: u32,
     pub fill_count: u32,
-    pub _pad: u32,
+    /// Advection: index in the coordinate buffer of the per-pixel distortion flags
+    /// (the upsample then only rewrites flagged pixels); 0 = upsample every pixel.
+    pub flag_base: u32,
+    /// Advection: the output window's absolute origin (the velocity field covers the
+    /// window, finest-level pixels).
+    pub window_origin: [i32; 2],
+    /// Advection: distortion threshold, `(c h 256)^2` (see `advect.rs`).
+    pub distortion_max: u32,
+    /// This level's distance from the finest (`2^steps` finest pixels per pixel).
+    pub steps: u32,
 }
 
 /// Dynamic uniform offsets must be multiples of this (the WebGPU default limit).

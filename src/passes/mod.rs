@@ -2,6 +2,7 @@
 //! (`shaders/upsample.wgsl` <-> `upsample.rs`), plus the synthesis plan that both the
 //! GPU and the CPU follow. All arithmetic is integer, so GPU and CPU agree bit for bit.
 
+pub mod advect;
 pub mod common;
 pub mod correct;
 pub mod correct_aniso;
@@ -77,6 +78,20 @@ pub fn run_cpu_surface(
     jac: &[[i32; 4]],
     surface: &[u32],
 ) -> Option<Synthesis> {
+    run_cpu_frame(analysis, schedule, coords, jac, surface, &[])
+}
+
+/// [`run_cpu_surface`] with an advection frame's velocity field (1/16 output pixel per
+/// frame, one per output-window pixel); `coords` then also holds the flag region
+/// ([`SynthPlan::flag_base`]).
+pub fn run_cpu_frame(
+    analysis: &Analysis,
+    schedule: &[Dispatch],
+    coords: &mut [[i32; 2]],
+    jac: &[[i32; 4]],
+    surface: &[u32],
+    velocity: &[[i32; 2]],
+) -> Option<Synthesis> {
     let mut out = None;
     for d in schedule {
         let gathered = match d.kind {
@@ -108,6 +123,18 @@ pub fn run_cpu_surface(
             }
             PassKind::Fill => {
                 fill::run(&d.params, coords, jac, surface);
+                None
+            }
+            PassKind::AdvectCopy => {
+                advect::copy(&d.params, coords);
+                None
+            }
+            PassKind::Advect => {
+                advect::advect(&d.params, coords, jac, velocity);
+                None
+            }
+            PassKind::Distortion => {
+                advect::distortion(&d.params, coords, jac, surface);
                 None
             }
             PassKind::Gather => Some(gather::run(&d.params, coords, &analysis.colors)),

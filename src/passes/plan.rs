@@ -394,7 +394,13 @@ impl SynthPlan {
             fill_base: self.surface_layout.get(level).map_or(0, |s| s.fill_base),
             // The band; the schedule's last fill of a level covers the whole gutter.
             fill_count: self.surface_layout.get(level).map_or(0, |s| s.band_count),
-            _pad: 0,
+            flag_base: 0,
+            window_origin: [
+                self.params.origin[0],
+                self.params.origin[1],
+            ],
+            distortion_max: 0,
+            steps: (self.levels.len() - 1 - level) as u32,
         }
     }
 }
@@ -451,6 +457,12 @@ pub enum PassKind {
     GatherAniso,
     /// Atlas synthesis: refill the gutters through the indirection map.
     Fill,
+    /// Advection: copy a level's coordinates to the scratch region.
+    AdvectCopy,
+    /// Advection: move the coordinates with the flow.
+    Advect,
+    /// Advection: flag the pixels whose coordinates the flow distorted too much.
+    Distortion,
 }
 
 /// One dispatch of the schedule: the GPU and the CPU mirror run the same list.
@@ -483,6 +495,9 @@ impl Dispatch {
                 [p.window_size[0] as u32, p.window_size[1] as u32]
             }
             PassKind::Fill => [p.fill_count.min(FILL_ROW), p.fill_count.div_ceil(FILL_ROW)],
+            PassKind::AdvectCopy | PassKind::Advect | PassKind::Distortion => {
+                [p.size[0] as u32, p.size[1] as u32]
+            }
         }
     }
 }
@@ -491,6 +506,83 @@ impl Dispatch {
 pub const SUBPASS_ORDER: [[i32; 2]; 4] = [[0, 0], [1, 1], [1, 0], [0, 1]];
 
 impl SynthPlan {
+    /// Where advection keeps its per-pixel distortion flags: after every level's
+    /// coordinates (a buffer for advection holds `coord_count + flag_count()` entries).
+    pub fn flag_base(&self) -> u32 {
+        self.coord_count as u32
+    }
+
+    /// Entries of the flag region (the largest level).
+    pub fn flag_count(&self) -> u64 {
+        self.levels
+            .iter()
+            .map(|l| l.size[0] as u64 * l.size[1] as u64)
+            .max()
+            .unwrap_or(0)
+    }
+
+    /// The dispatches of one advection frame (paper section 7): for each of the
+    /// `levels` finest levels, coarse to fine, advect the coordinates in place, flag the
+    /// pixels distorted beyond `c` (|J_obs - J|_F, Jacobian units), upsample only those
+    /// from the coarser level, then correct with `passes` passes as synthesis does; the
+    /// gather ends it. The coarser levels keep
+    /// the first frame's coordinates. Needs an anisometric plan (continuous coordinates).
+    pub fn advect_schedule(
+        &self,
+        analysis: &Analysis,
+        levels: usize,
+        c: f32,
+        passes: u32,
+    ) -> Vec<Dispatch> {
+        let n = self.levels.len();
+        let first = n - levels.clamp(1, n);
+        // The synthesis schedule with `passes` correction passes at every level.
+        let mut frame_plan = self.clone();
+        frame_plan.params.passes = passes;
+        frame_plan.params.finest_passes = passes;
+        let full = frame_plan.schedule(analysis);
+        let mut out = Vec::new();
+        for level in first..n {
+            let base = self.pass_params(analysis, level);
+            let adv = PassParams {
+                flag_base: self.flag_base(),
+                distortion_max: super::advect::distortion_max(c, base.spacing),
+                ..base
+            };
+            out.push(Dispatch {
+                kind: PassKind::AdvectCopy,
+                level,
+                params: adv,
+            });
+            out.push(Dispatch {
+                kind: PassKind::Advect,
+                level,
+                params: adv,
+            });
+            if level > 0 {
+                out.push(Dispatch {
+                    kind: PassKind::Distortion,
+                    level,
+                    params: adv,
+                });
+                out.push(Dispatch {
+                    kind: PassKind::UpsampleAniso,
+                    level,
+                    params: adv,
+                });
+            }
+            // The level's fills and corrections, as in synthesis (no jitter: the
+            // advected pixels keep their place, the re-upsampled ones are rare).
+            out.extend(full.iter().filter(|d| {
+                d.level == level && matches!(d.kind, PassKind::CorrectAniso | PassKind::Fill)
+            }));
+        }
+        if let Some(g) = full.last() {
+            out.push(*g);
+        }
+        out
+    }
+
     /// Every dispatch of the synthesis, in order.
     pub fn schedule(&self, analysis: &Analysis) -> Vec<Dispatch> {
         let aniso = self.params.anisometric();

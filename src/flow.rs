@@ -1,0 +1,200 @@
+//! Velocity fields for advection: presets and user fields, sampled per output pixel in
+//! pixels per unit time (a frame moves the texture by `velocity * dt`).
+
+use std::path::Path;
+
+use crate::error::{Error, Result};
+
+/// A velocity field over the output (or atlas), pixel units.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Flow {
+    /// The same velocity everywhere.
+    Uniform { vx: f32, vy: f32 },
+    /// Rigid rotation about `(cx, cy)` (fractions of the size) at `omega` radians per unit
+    /// time, counter-clockwise on screen for positive omega.
+    Vortex { cx: f32, cy: f32, omega: f32 },
+    /// Radial flow from `(cx, cy)` (negative strength: a sink); the speed is `strength`
+    /// pixels per unit time at every radius beyond 8 pixels (and falls to 0 at the
+    /// centre), so the texture stretches near the source.
+    Source { cx: f32, cy: f32, strength: f32 },
+    /// A time-varying flow: a uniform drift of `speed` whose direction turns at `turn`
+    /// radians per unit time, plus a travelling sine shear of amplitude `speed / 2`.
+    Gusts { speed: f32, turn: f32 },
+    /// A user field: one velocity per pixel (row-major), pixels per unit time, of
+    /// exactly the output's size.
+    Map {
+        width: u32,
+        height: u32,
+        data: std::sync::Arc<Vec<[f32; 2]>>,
+    },
+}
+
+pub const FLOW_HELP: &str = "\
+Velocity fields (pixels per unit time; a frame moves the texture by velocity * dt):
+  uniform:VX,VY            the same everywhere
+  vortex[:CX,CY,OMEGA]     rigid rotation about (CX, CY) (fractions of the size, default
+                           0.5,0.5) at OMEGA radians per unit time (default 0.01)
+  source[:CX,CY,SPEED]     radial flow from (CX, CY) at SPEED px per unit time (default
+                           0.5,0.5,1); a negative SPEED is a sink
+  gusts[:SPEED,TURN]       time-varying: a drift of SPEED (default 1) turning at TURN
+                           radians per unit time (default 0.02), plus a travelling shear
+  image:FILE               red, green = vx, vy mapped from 0..1 to -8..8 px (8-bit or
+                           16-bit image), or an EXR's first two channels as pixels directly;
+                           must have the output's size";
+
+impl Flow {
+    /// Velocities of every pixel of a `width` x `height` output at time `t`.
+    pub fn sample(&self, width: u32, height: u32, t: f32) -> Result<Vec<[f32; 2]>> {
+        let (w, h) = (width as f32, height as f32);
+        let n = width as usize * height as usize;
+        let at = |f: &dyn Fn(f32, f32) -> [f32; 2]| {
+            let mut out = Vec::with_capacity(n);
+            for y in 0..height {
+                for x in 0..width {
+                    out.push(f(x as f32 + 0.5, y as f32 + 0.5));
+                }
+            }
+            out
+        };
+        Ok(match self {
+            Flow::Uniform { vx, vy } => vec![[*vx, *vy]; n],
+            Flow::Vortex { cx, cy, omega } => {
+                let (cx, cy) = (cx * w, cy * h);
+                at(&|x, y| [-omega * (y - cy), omega * (x - cx)])
+            }
+            Flow::Source { cx, cy, strength } => {
+                let (cx, cy) = (cx * w, cy * h);
+                at(&|x, y| {
+                    let (dx, dy) = (x - cx, y - cy);
+                    let r = (dx * dx + dy * dy).sqrt();
+                    let s = strength * (r / 8.0).min(1.0) / r.max(1e-6);
+                    [dx * s, dy * s]
+                })
+            }
+            Flow::Gusts { speed, turn } => {
+                let a = turn * t;
+                let (c, s) = (a.cos(), a.sin());
+                at(&|_x, y| {
+                    let shear = 0.5 * speed * ((y / h * 6.0 + t * 0.05) * std::f32::consts::TAU).sin();
+                    [speed * c + shear, speed * s]
+                })
+            }
+            Flow::Map {
+                width: mw,
+                height: mh,
+                data,
+            } => {
+                if (*mw, *mh) != (width, height) {
+                    return Err(Error::InvalidParameter(format!(
+                        "velocity field is {mw}x{mh}; the output is {width}x{height}"
+                    )));
+                }
+                data.as_ref().clone()
+            }
+        })
+    }
+
+    pub fn validate(&self) -> Result<()> {
+        let finite = |v: &[f32]| v.iter().all(|x| x.is_finite());
+        let ok = match self {
+            Flow::Uniform { vx, vy } => finite(&[*vx, *vy]),
+            Flow::Vortex { cx, cy, omega } => finite(&[*cx, *cy, *omega]),
+            Flow::Source { cx, cy, strength } => finite(&[*cx, *cy, *strength]),
+            Flow::Gusts { speed, turn } => finite(&[*speed, *turn]),
+            Flow::Map { data, .. } => data.iter().all(|v| finite(v)),
+        };
+        if ok {
+            Ok(())
+        } else {
+            Err(Error::InvalidParameter(
+                "velocity field has NaN or infinite values".into(),
+            ))
+        }
+    }
+
+    /// Reads a user velocity image (see [`FLOW_HELP`]).
+    pub fn load(path: &Path) -> Result<Flow> {
+        let img = crate::image_io::open_image(path)?;
+        let (width, height) = (img.width(), img.height());
+        let is_exr = path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
+        let rgb = img.to_rgb32f();
+        let data: Vec<[f32; 2]> = rgb
+            .pixels()
+            .map(|p| {
+                if is_exr {
+                    [p.0[0], p.0[1]]
+                } else {
+                    [(p.0[0] - 0.5) * 16.0, (p.0[1] - 0.5) * 16.0]
+                }
+            })
+            .collect();
+        let flow = Flow::Map {
+            width,
+            height,
+            data: std::sync::Arc::new(data),
+        };
+        flow.validate().map_err(|_| Error::BadImage {
+            path: path.to_path_buf(),
+            reason: "velocity field has NaN or infinite values".into(),
+        })?;
+        Ok(flow)
+    }
+}
+
+impl std::str::FromStr for Flow {
+    type Err = String;
+
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        let (kind, rest) = s.split_once(':').unwrap_or((s, ""));
+        let nums = |n: usize, defaults: &[f32]| -> std::result::Result<Vec<f32>, String> {
+            if rest.is_empty() {
+                return if defaults.len() == n {
+                    Ok(defaults.to_vec())
+                } else {
+                    Err(format!("'{s}': {kind} needs {n} numbers"))
+                };
+            }
+            let v: std::result::Result<Vec<f32>, _> =
+                rest.split(',').map(|x| x.trim().parse::<f32>()).collect();
+            match v {
+                Ok(v) if v.len() == n && v.iter().all(|x| x.is_finite()) => Ok(v),
+                _ => Err(format!("'{s}': {kind} takes {n} finite numbers separated by commas")),
+            }
+        };
+        Ok(match kind {
+            "uniform" => {
+                let v = nums(2, &[])?;
+                Flow::Uniform { vx: v[0], vy: v[1] }
+            }
+            "vortex" => {
+                let v = nums(3, &[0.5, 0.5, 0.01])?;
+                Flow::Vortex {
+                    cx: v[0],
+                    cy: v[1],
+                    omega: v[2],
+                }
+            }
+            "source" => {
+                let v = nums(3, &[0.5, 0.5, 1.0])?;
+                Flow::Source {
+                    cx: v[0],
+                    cy: v[1],
+                    strength: v[2],
+                }
+            }
+            "gusts" => {
+                let v = nums(2, &[1.0, 0.02])?;
+                Flow::Gusts {
+                    speed: v[0],
+                    turn: v[1],
+                }
+            }
+            "image" if !rest.is_empty() => {
+                Flow::load(Path::new(rest)).map_err(|e| e.to_string())?
+            }
+            _ => return Err(format!("'{s}': unknown flow (see --help)\n{FLOW_HELP}")),
+        })
+    }
+}

@@ -1,0 +1,434 @@
+//! Texture advection frame by frame, driven by a host application (paper section 7).
+//!
+//! [`Advection::new`] synthesizes the first frame and keeps its coordinate pyramid on
+//! the GPU; every [`Advection::step`] (host velocities) or [`Advection::encode_step`]
+//! (a velocity buffer the caller owns, recorded into the caller's encoder) runs one
+//! frame of [`SynthPlan::advect_schedule`] and leaves the new colours in
+//! [`Advection::texture`]. Nothing comes back to the host unless asked for.
+//!
+//! Velocities are in output pixels (atlas texels for surfaces) per unit time; a frame
+//! moves the texture by `velocity * dt`. Host velocities must be finite; speeds above
+//! [`MAX_SPEED`] pixels per frame are clamped per component (documented limit of the
+//! fixed-point arithmetic). The GPU path cannot report errors per pixel: there,
+//! non-finite velocities count as 0.
+
+use std::sync::Arc;
+
+use super::context::GpuContext;
+use super::shaders;
+use super::synth::{read_buffer, wait, GpuSynthesis, GpuSynthesizer};
+use crate::error::{Error, Result};
+use crate::field::Field;
+use crate::passes::advect::{MAX_SPEED, VELOCITY_FRAC};
+use crate::passes::plan::{Dispatch, SynthPlan};
+use crate::passes::SynthParams;
+
+/// How an advection frame treats the pyramid.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AdvectOptions {
+    /// Levels advected and corrected each frame (the finest ones); the coarser ones keep
+    /// the first frame's synthesis.
+    pub levels: usize,
+    /// Distortion threshold `c` on `|J_obs - J|_F` (Jacobian units): pixels beyond it
+    /// are upsampled again from the coarser level.
+    pub threshold: f32,
+    /// Correction passes per advected level and frame (the advected coordinates are
+    /// already nearly right: one pass keeps the cost at a fraction of a synthesis).
+    pub passes: u32,
+}
+
+impl Default for AdvectOptions {
+    fn default() -> Self {
+        Self {
+            levels: 3,
+            threshold: 0.5,
+            passes: 1,
+        }
+    }
+}
+
+/// Host-side quantization of one velocity, as `shaders/velocity.wgsl` does on the GPU.
+pub fn quantize_velocity(v: [f32; 2], dt: f32) -> [i32; 2] {
+    let s = (1u32 << VELOCITY_FRAC) as f32;
+    v.map(|c| {
+        if !c.is_finite() {
+            return 0;
+        }
+        ((c * dt).clamp(-MAX_SPEED, MAX_SPEED) * s).round_ties_even() as i32
+    })
+}
+
+/// The advected texture of one window (or atlas) and its state on the GPU.
+pub struct Advection {
+    synthesizer: Arc<GpuSynthesizer>,
+    params: SynthParams,
+    plan: SynthPlan,
+    options: AdvectOptions,
+    coords: wgpu::Buffer,
+    velocity: wgpu::Buffer,
+    output: GpuSynthesis,
+    view: wgpu::TextureView,
+    quantize: wgpu::ComputePipeline,
+    quantize_layout: wgpu::BindGroupLayout,
+    frame: u64,
+}
+
+impl Advection {
+    /// Synthesizes frame 0 of `params` (an isometric plan is run with the identity
+    /// field: advection needs continuous coordinates).
+    pub fn new(
+        ctx: &GpuContext,
+        synthesizer: Arc<GpuSynthesizer>,
+        params: &SynthParams,
+        options: AdvectOptions,
+    ) -> Result<Self> {
+        let params = Self::anisometric(params);
+        Self::check_options(&options)?;
+        let plan = SynthPlan::new(synthesizer.analysis(), &params)?;
+        let n_coords = plan.coord_count + plan.flag_count();
+        let pixels = params.width as u64 * params.height as u64;
+        let max = ctx.limits().max_storage_buffer_binding_size;
+        if n_coords * 8 > max {
+            return Err(Error::TooLarge {
+                what: "advected output",
+                width: params.width,
+                height: params.height,
+                limit: format!("its coordinate pyramid needs {} MiB", (n_coords * 8) >> 20),
+                hint: "advect a smaller window",
+            });
+        }
+        let (coords, velocity, output, quantize, quantize_layout) = ctx.scoped(|| {
+            let coords = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("texsyn advected coords"),
+                size: n_coords * 8,
+                usage: wgpu::BufferUsages::STORAGE
+                    | wgpu::BufferUsages::COPY_SRC
+                    | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            let velocity = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("texsyn velocity"),
+                size: (pixels * 8).max(16),
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            let texture = synthesizer.output_texture(ctx, params.width, params.height);
+            let entry = |binding, ty| wgpu::BindGroupLayoutEntry {
+                binding,
+                visibility: wgpu::ShaderStages::COMPUTE,
+                ty,
+                count: None,
+            };
+            let storage = |read_only| wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Storage { read_only },
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            };
+            let quantize_layout =
+                ctx.device
+                    .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                        label: Some("texsyn velocity"),
+                        entries: &[
+                            entry(
+                                0,
+                                wgpu::BindingType::Buffer {
+                                    ty: wgpu::BufferBindingType::Uniform,
+                                    has_dynamic_offset: false,
+                                    min_binding_size: None,
+                                },
+                            ),
+                            entry(1, storage(true)),
+                            entry(2, storage(false)),
+                        ],
+                    });
+            let layout = ctx
+                .device
+                .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                    label: Some("texsyn velocity"),
+                    bind_group_layouts: &[Some(&quantize_layout)],
+                    immediate_size: 0,
+                });
+            let module = ctx
+                .device
+                .create_shader_module(wgpu::ShaderModuleDescriptor {
+                    label: Some(shaders::VELOCITY.file),
+                    source: wgpu::ShaderSource::Wgsl(shaders::VELOCITY.source.into()),
+                });
+            let quantize = ctx
+                .device
+                .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                    label: Some("texsyn velocity"),
+                    layout: Some(&layout),
+                    module: &module,
+                    entry_point: Some(shaders::VELOCITY.entry_point),
+                    compilation_options: Default::default(),
+                    cache: None,
+                });
+            (
+                coords,
+                velocity,
+                GpuSynthesis {
+                    texture,
+                    width: params.width,
+                    height: params.height,
+                },
+                quantize,
+                quantize_layout,
+            )
+        })?;
+        let view = output.texture.create_view(&Default::default());
+        let this = Self {
+            synthesizer,
+            params,
+            plan,
+            options,
+            coords,
+            velocity,
+            output,
+            view,
+            quantize,
+            quantize_layout,
+            frame: 0,
+        };
+        let schedule = this.plan.schedule(this.synthesizer.analysis());
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        this.record(ctx, &mut encoder, &schedule, true)?;
+        ctx.scoped(|| ctx.queue.submit([encoder.finish()]))?;
+        Ok(this)
+    }
+
+    fn anisometric(params: &SynthParams) -> SynthParams {
+        let mut p = params.clone();
+        if !p.anisometric() {
+            p.field = Some(Field::Constant {
+                angle: 0.0,
+                scale: [1.0, 1.0],
+                shear: 0.0,
+            });
+        }
+        p
+    }
+
+    fn record(
+        &self,
+        ctx: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        schedule: &[Dispatch],
+        clear: bool,
+    ) -> Result<()> {
+        ctx.scoped(|| {
+            self.synthesizer.record_with(
+                ctx,
+                encoder,
+                &self.plan,
+                schedule,
+                &self.view,
+                clear,
+                &[],
+                Some((&self.coords, &self.velocity)),
+            );
+        })
+    }
+
+    /// Frames advected so far.
+    pub fn frame(&self) -> u64 {
+        self.frame
+    }
+
+    pub fn params(&self) -> &SynthParams {
+        &self.params
+    }
+
+    pub fn plan(&self) -> &SynthPlan {
+        &self.plan
+    }
+
+    pub fn options(&self) -> AdvectOptions {
+        self.options
+    }
+
+    /// The current colours (`Rgba8Unorm`; storage, texture binding, copy source).
+    pub fn texture(&self) -> &wgpu::Texture {
+        &self.output.texture
+    }
+
+    /// Changes synthesis parameters between frames (randomness, passes, coherence,
+    /// distance, field, seed): the size, window and atlas must stay the same.
+    pub fn set_params(&mut self, params: &SynthParams) -> Result<()> {
+        let params = Self::anisometric(params);
+        let plan = SynthPlan::new(self.synthesizer.analysis(), &params)?;
+        let same_regions = plan.levels.len() == self.plan.levels.len()
+            && plan
+                .levels
+                .iter()
+                .zip(&self.plan.levels)
+                .all(|(a, b)| a.origin == b.origin && a.size == b.size);
+        if !same_regions || params.surface.is_some() != self.params.surface.is_some() {
+            return Err(Error::InvalidParameter(
+                "advection parameters may change between frames, but not the output size, \
+                 window or atlas: start a new advection for those"
+                    .into(),
+            ));
+        }
+        self.params = params;
+        self.plan = plan;
+        Ok(())
+    }
+
+    pub fn set_options(&mut self, options: AdvectOptions) -> Result<()> {
+        Self::check_options(&options)?;
+        self.options = options;
+        Ok(())
+    }
+
+    fn check_options(o: &AdvectOptions) -> Result<()> {
+        if !(1..=16).contains(&o.levels)
+            || !o.threshold.is_finite()
+            || o.threshold <= 0.0
+            || o.passes > 16
+        {
+            return Err(Error::InvalidParameter(format!(
+                "advection of {} levels, threshold {}, {} passes: use 1-16 levels, a positive threshold and at most 16 passes",
+                o.levels, o.threshold, o.passes
+            )));
+        }
+        Ok(())
+    }
+
+    fn check_dt(dt: f32) -> Result<()> {
+        if !dt.is_finite() || dt <= 0.0 {
+            return Err(Error::InvalidParameter(format!(
+                "time step {dt}: it must be a positive number"
+            )));
+        }
+        Ok(())
+    }
+
+    /// One frame from host velocities (one per output pixel, row-major, pixels per unit
+    /// time), submitted to the queue. Errors on a wrong count or a non-finite value.
+    pub fn step(&mut self, ctx: &GpuContext, velocity: &[[f32; 2]], dt: f32) -> Result<()> {
+        Self::check_dt(dt)?;
+        let n = self.params.width as usize * self.params.height as usize;
+        if velocity.len() != n {
+            return Err(Error::InvalidParameter(format!(
+                "velocity field has {} vectors; the output is {}x{} = {n} pixels",
+                velocity.len(),
+                self.params.width,
+                self.params.height
+            )));
+        }
+        if let Some(i) = velocity.iter().position(|v| !v[0].is_finite() || !v[1].is_finite()) {
+            return Err(Error::InvalidParameter(format!(
+                "velocity at pixel ({}, {}) is not finite ({:?})",
+                i % self.params.width as usize,
+                i / self.params.width as usize,
+                velocity[i]
+            )));
+        }
+        let q: Vec<[i32; 2]> = velocity.iter().map(|&v| quantize_velocity(v, dt)).collect();
+        ctx.scoped(|| {
+            ctx.queue
+                .write_buffer(&self.velocity, 0, bytemuck::cast_slice(&q))
+        })?;
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        self.record_frame(ctx, &mut encoder)?;
+        ctx.scoped(|| ctx.queue.submit([encoder.finish()]))?;
+        Ok(())
+    }
+
+    /// One frame from a velocity buffer the caller owns (`vec2<f32>` per output pixel,
+    /// usage STORAGE), recorded into the caller's encoder: nothing goes through the host.
+    /// Non-finite velocities count as 0.
+    pub fn encode_step(
+        &mut self,
+        ctx: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        velocity: &wgpu::Buffer,
+        dt: f32,
+    ) -> Result<()> {
+        Self::check_dt(dt)?;
+        let n = self.params.width as u64 * self.params.height as u64;
+        if velocity.size() < n * 8 {
+            return Err(Error::InvalidParameter(format!(
+                "velocity buffer holds {} bytes; the output needs {} (vec2<f32> per pixel)",
+                velocity.size(),
+                n * 8
+            )));
+        }
+        ctx.scoped(|| {
+            let mut uniform = [0u8; 16];
+            uniform[..4].copy_from_slice(&(n as u32).to_le_bytes());
+            uniform[4..8].copy_from_slice(&dt.to_le_bytes());
+            let params = wgpu::util::DeviceExt::create_buffer_init(
+                &ctx.device,
+                &wgpu::util::BufferInitDescriptor {
+                    label: Some("texsyn velocity params"),
+                    contents: &uniform,
+                    usage: wgpu::BufferUsages::UNIFORM,
+                },
+            );
+            let group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("texsyn velocity"),
+                layout: &self.quantize_layout,
+                entries: &[
+                    wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: params.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 1,
+                        resource: velocity.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 2,
+                        resource: self.velocity.as_entire_binding(),
+                    },
+                ],
+            });
+            let mut pass = encoder.begin_compute_pass(&Default::default());
+            pass.set_pipeline(&self.quantize);
+            pass.set_bind_group(0, &group, &[]);
+            let groups = (n as u32).div_ceil(64);
+            pass.dispatch_workgroups(groups.min(65535), groups.div_ceil(65535), 1);
+        })?;
+        self.record_frame(ctx, encoder)
+    }
+
+    fn record_frame(&mut self, ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder) -> Result<()> {
+        let schedule = self.plan.advect_schedule(
+            self.synthesizer.analysis(),
+            self.options.levels,
+            self.options.threshold,
+            self.options.passes,
+        );
+        self.record(ctx, encoder, &schedule, false)?;
+        self.frame += 1;
+        Ok(())
+    }
+
+    /// Waits for the GPU and reads the current colours (RGBA8 rows).
+    pub fn read_rgba8(&self, ctx: &GpuContext) -> Result<Vec<u8>> {
+        self.output.read_rgba8(ctx)
+    }
+
+    /// Waits for the GPU and reads the whole coordinate buffer (every level, then the
+    /// flag region), to compare with the CPU mirror.
+    pub fn read_coords(&self, ctx: &GpuContext) -> Result<Vec<[i32; 2]>> {
+        let bytes = self.coords.size();
+        let rb = ctx.scoped(|| {
+            let rb = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("texsyn advected coords readback"),
+                size: bytes,
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            let mut encoder = ctx.device.create_command_encoder(&Default::default());
+            encoder.copy_buffer_to_buffer(&self.coords, 0, &rb, 0, bytes);
+            ctx.queue.submit([encoder.finish()]);
+            rb
+        })?;
+        wait(ctx)?;
+        let data = read_buffer(ctx, &rb)?;
+        Ok(bytemuck::cast_slice(&data).to_vec())
+    }
+}
