@@ -1,9 +1,11 @@
-// Advection of a level's coordinates (mirror: src/passes/advect.rs), semi-Lagrangian
-// without resampling: S[p] = S'[p - k] - J(p) (V - k), where S' is the previous frame
-// (copied to the scratch region), V the velocity at the pixel in output pixels per frame
-// (1/16) and k its nearest whole number of this level's pixels. The texture moves with
-// the flow, colour(p, t) = colour(p - V, t - 1): whole pixels by moving coordinates
-// (patch seams included), the rest through J within the patches.
+// Advection of a level's coordinates (mirror: src/passes/advect.rs), without
+// resampling: S[p] = S'[p - k] - J(p) (V(p) - k), where S' is the previous frame (copied
+// to the scratch region), V the velocity in output pixels per frame (1/16) and k the
+// velocity at the window's centre rounded to whole pixels of this level, the same for
+// every pixel. The texture moves with the flow, colour(p, t) = colour(p - V, t - 1):
+// the common drift by moving whole coordinates (patch seams included, so a uniform flow
+// of whole pixels translates the texture exactly), the rest in place through J, which
+// keeps neighbouring pixels coherent (a per-pixel k tears the texture where it changes).
 #include "shared/common.wgsl"
 
 // The velocity at the finest-level pixel under this level's pixel p (absolute),
@@ -25,7 +27,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = params.coord_base + u32(q.y * params.size.x + q.x);
     let vq = velocity_at(params.origin + q);
     let unit = 16 << params.steps;
-    let k = (vq + vec2<i32>(unit >> 1u)) >> vec2<u32>(4u + params.steps);
+    let ws = params.window_size;
+    let vc = velocity[u32((ws.y / 2) * ws.x + ws.x / 2)];
+    let k = (vc + vec2<i32>(unit >> 1u)) >> vec2<u32>(4u + params.steps);
     let v = vq - k * unit;
     let src = clamp(q - k, vec2<i32>(0), params.size - vec2<i32>(1));
     let prev = coords[params.flag_base + u32(src.y * params.size.x + src.x)];

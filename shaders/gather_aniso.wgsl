@@ -15,7 +15,10 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let q = p + params.window_offset;
-    let c = coords[params.coord_base + u32(q.y * params.size.x + q.x)];
+    var c = coords[params.coord_base + u32(q.y * params.size.x + q.x)];
+    if (params.nearest != 0u) {
+        c = ((c + vec2<i32>(128)) >> vec2<u32>(8u)) << vec2<u32>(8u);
+    }
     let taps = bilinear_taps(read_coord_fx(c));
     let i0 = taps.i0;
     let i1 = taps.i1;

@@ -1377,3 +1377,116 @@ pub fn wrap_seam_ratio(image: &FloatImage) -> Result<f64> {
         1.0
     })
 }
+
+/// Temporal coherence of an advected sequence (`texsyn advect`, `texsyn eval --frames`).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TemporalReport {
+    /// Per consecutive pair: mean absolute difference (0-1) between frame t and frame
+    /// t-1 warped by the flow (sampled bilinearly at p - V dt). Low: coherent, no popping.
+    pub warped_diff: Vec<f64>,
+    /// The same without warping, for scale (what a static viewer sees change).
+    pub unwarped_diff: Vec<f64>,
+    /// Texture energy (neighbourhood distance to the exemplar) of the frames it was
+    /// computed for, as (frame index, energy).
+    pub energy: Vec<(usize, f64)>,
+    /// High-frequency energy (mean squared Laplacian) of each frame divided by the
+    /// exemplar's: 1 is as sharp as the exemplar, lower is blurred.
+    pub sharpness: Vec<f64>,
+}
+
+impl TemporalReport {
+    pub fn mean_warped_diff(&self) -> f64 {
+        mean(&self.warped_diff)
+    }
+    pub fn mean_unwarped_diff(&self) -> f64 {
+        mean(&self.unwarped_diff)
+    }
+}
+
+fn mean(v: &[f64]) -> f64 {
+    if v.is_empty() {
+        0.0
+    } else {
+        v.iter().sum::<f64>() / v.len() as f64
+    }
+}
+
+/// Mean squared Laplacian of a grey image (interior pixels).
+pub fn high_frequency_energy(img: &FloatImage) -> f64 {
+    let g = img.to_grey();
+    let (w, h) = (g.width as usize, g.height as usize);
+    if w < 3 || h < 3 {
+        return 0.0;
+    }
+    let at = |x: usize, y: usize| g.data[y * w + x] as f64;
+    let mut sum = 0.0;
+    for y in 1..h - 1 {
+        for x in 1..w - 1 {
+            let l = 4.0 * at(x, y) - at(x - 1, y) - at(x + 1, y) - at(x, y - 1) - at(x, y + 1);
+            sum += l * l;
+        }
+    }
+    sum / ((w - 2) * (h - 2)) as f64
+}
+
+/// Mean absolute difference between `cur` and `prev` sampled bilinearly at `p - d(p)`
+/// (grey, 0-1), over the pixels at least `margin` from the border whose source lies
+/// inside `prev`.
+pub fn warped_difference(
+    prev: &FloatImage,
+    cur: &FloatImage,
+    d: &[[f32; 2]],
+    margin: u32,
+) -> f64 {
+    let (a, b) = (prev.to_grey(), cur.to_grey());
+    let (w, h) = (b.width as usize, b.height as usize);
+    let m = margin as usize;
+    let (mut sum, mut n) = (0.0, 0usize);
+    for y in m..h.saturating_sub(m) {
+        for x in m..w.saturating_sub(m) {
+            let v = d.get(y * w + x).copied().unwrap_or([0.0; 2]);
+            let (fx, fy) = (x as f32 - v[0], y as f32 - v[1]);
+            let (x0, y0) = (fx.floor(), fy.floor());
+            if x0 < 0.0 || y0 < 0.0 || x0 as usize + 1 >= w || y0 as usize + 1 >= h {
+                continue;
+            }
+            let (tx, ty) = ((fx - x0) as f64, (fy - y0) as f64);
+            let (x0, y0) = (x0 as usize, y0 as usize);
+            let p = |xx: usize, yy: usize| a.data[yy * w + xx] as f64;
+            let s = p(x0, y0) * (1.0 - tx) * (1.0 - ty)
+                + p(x0 + 1, y0) * tx * (1.0 - ty)
+                + p(x0, y0 + 1) * (1.0 - tx) * ty
+                + p(x0 + 1, y0 + 1) * tx * ty;
+            sum += (b.data[y * w + x] as f64 - s).abs();
+            n += 1;
+        }
+    }
+    sum / n.max(1) as f64
+}
+
+/// The temporal figures of `frames` advected by `displacement(t)` (per-pixel motion
+/// between frame t-1 and t, pixels). Texture energy is computed every `energy_every`
+/// frames (and for the last one): it is the costly figure.
+pub fn temporal_report(
+    exemplar: &FloatImage,
+    frames: &[FloatImage],
+    displacement: impl Fn(usize) -> Vec<[f32; 2]>,
+    energy_every: usize,
+) -> Result<TemporalReport> {
+    let mut r = TemporalReport::default();
+    let ex_hf = high_frequency_energy(exemplar).max(1e-12);
+    let zero = vec![[0.0f32; 2]; frames.first().map_or(0, |f| (f.width * f.height) as usize)];
+    for (t, f) in frames.iter().enumerate() {
+        r.sharpness.push(high_frequency_energy(f) / ex_hf);
+        if t > 0 {
+            r.warped_diff
+                .push(warped_difference(&frames[t - 1], f, &displacement(t), 4));
+            r.unwarped_diff
+                .push(warped_difference(&frames[t - 1], f, &zero, 4));
+        }
+        if t % energy_every.max(1) == 0 || t + 1 == frames.len() {
+            r.energy.push((t, texture_energy(exemplar, f, 2)?));
+        }
+    }
+    Ok(r)
+}

@@ -101,7 +101,7 @@ fn advection_frames_gpu_match_cpu() {
     let plan: SynthPlan = adv.plan().clone();
     let jac = plan.jacobians();
     let mut cpu = vec![[0i32; 2]; (plan.coord_count + plan.flag_count()) as usize];
-    run_cpu_frame(&a, &plan.schedule(&a), &mut cpu, &jac, &[], &[]);
+    run_cpu_frame(&a, &plan.advect_first_schedule(&a, opts.nearest), &mut cpu, &jac, &[], &[]);
     assert!(adv.read_coords(ctx()).unwrap() == cpu, "frame 0 differs");
     let flows = [
         Flow::Vortex { cx: 0.3, cy: 0.6, omega: 0.05 },
@@ -112,7 +112,7 @@ fn advection_frames_gpu_match_cpu() {
         let v = flow.sample(48, 40, f as f32).unwrap();
         adv.step(ctx(), &v, 1.5).unwrap();
         let q: Vec<[i32; 2]> = v.iter().map(|&v| quantize_velocity(v, 1.5)).collect();
-        let out = run_cpu_frame(&a, &plan.advect_schedule(&a, opts.levels, opts.threshold, opts.passes), &mut cpu, &jac, &[], &q)
+        let out = run_cpu_frame(&a, &plan.advect_schedule(&a, opts.levels, opts.threshold, opts.passes, f as u64, opts.nearest), &mut cpu, &jac, &[], &q)
             .unwrap();
         assert!(adv.read_coords(ctx()).unwrap() == cpu, "frame {} ({flow:?}) differs", f + 1);
         let rgba: Vec<u8> = out.colors.iter().flatten().copied().collect();

@@ -47,6 +47,11 @@ struct Params {
     window_origin: vec2<i32>,
     distortion_max: u32,
     steps: u32,
+    // Anisometric gather: nearest exemplar texel instead of bilinear (advection).
+    nearest: u32,
+    _pad7: u32,
+    _pad8: u32,
+    _pad9: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: Params;

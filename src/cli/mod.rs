@@ -2,6 +2,7 @@
 //! thin layer over the library. Errors are printed as `error: <message>` and give exit
 //! code 1; usage errors are clap's (exit code 2).
 
+mod advect;
 mod analyze;
 mod bench;
 mod eval;
@@ -54,6 +55,7 @@ pub enum Command {
     Eval(eval::EvalArgs),
     Bench(bench::BenchArgs),
     Surface(surface::SurfaceArgs),
+    Advect(advect::AdvectArgs),
 }
 
 /// `--tileable` / `--no-tileable`: force either, or (neither) detect from the seams.
@@ -145,6 +147,7 @@ pub fn main() -> i32 {
         Command::Eval(a) => eval::run(&ui, a),
         Command::Bench(a) => bench::run(&ui, a),
         Command::Surface(a) => surface::run(&ui, a),
+        Command::Advect(a) => advect::run(&ui, a),
     };
     match result {
         Ok(()) => 0,

@@ -35,6 +35,11 @@ pub struct AdvectOptions {
     /// Correction passes per advected level and frame (the advected coordinates are
     /// already nearly right: one pass keeps the cost at a fraction of a synthesis).
     pub passes: u32,
+    /// Gather the exemplar texel nearest to each coordinate instead of interpolating:
+    /// sharp but aliased sub-pixel motion. Measured (gravel, 256x256, 120 frames) on a
+    /// vortex: texture energy 0.0055 vs 0.0043 and flow-warped frame difference 0.058 vs
+    /// 0.030 with bilinear, sharpness 1.19 vs 0.53: off by default.
+    pub nearest: bool,
 }
 
 impl Default for AdvectOptions {
@@ -43,6 +48,7 @@ impl Default for AdvectOptions {
             levels: 3,
             threshold: 0.5,
             passes: 1,
+            nearest: false,
         }
     }
 }
@@ -190,7 +196,8 @@ impl Advection {
             quantize_layout,
             frame: 0,
         };
-        let schedule = this.plan.schedule(this.synthesizer.analysis());
+        let schedule = this.plan
+            .advect_first_schedule(this.synthesizer.analysis(), this.options.nearest);
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
         this.record(ctx, &mut encoder, &schedule, true)?;
         ctx.scoped(|| ctx.queue.submit([encoder.finish()]))?;
@@ -400,6 +407,8 @@ impl Advection {
             self.options.levels,
             self.options.threshold,
             self.options.passes,
+            self.frame,
+            self.options.nearest,
         );
         self.record(ctx, encoder, &schedule, false)?;
         self.frame += 1;

@@ -1,8 +1,9 @@
 //! Mirrors of `shaders/advect.wgsl` and `shaders/distortion.wgsl`: texture advection
 //! (paper section 7, ALGORITHM.md "Advection"). Per frame, the finest levels' continuous
 //! coordinates are advected without resampling, `S[p] = S'[p - k] - J(p) (V(p) - k)`
-//! with `k` the velocity rounded to whole pixels of the level, so the texture moves with
-//! the flow (a uniform flow of whole pixels translates it exactly, seams included); where the advected coordinates no
+//! with `k` the velocity at the window's centre rounded to whole pixels of the level
+//! (one drift for all pixels, so neighbours stay coherent), so the texture moves with the
+//! flow (a uniform flow of whole pixels translates it exactly, seams included); where the advected coordinates no
 //! longer follow the desired Jacobian (`|J_obs - J|_F > c`, divergent or shearing flows
 //! stretch them) the pixel is upsampled again from the coarser level; then the usual
 //! correction passes run.
@@ -37,7 +38,9 @@ pub fn advect(p: &PassParams, coords: &mut [[i32; 2]], jac: &[[i32; 4]], velocit
         for x in 0..p.size[0] {
             let i = p.coord_base as usize + (y * p.size[0] + x) as usize;
             let vq = velocity_at(p, velocity, [p.origin[0] + x, p.origin[1] + y]);
-            let k = vq.map(|c| (c + (unit >> 1)) >> (4 + p.steps));
+            let ws = p.window_size;
+            let vc = velocity[((ws[1] / 2) * ws[0] + ws[0] / 2) as usize];
+            let k = vc.map(|c| (c + (unit >> 1)) >> (4 + p.steps));
             let v = [vq[0] - k[0] * unit, vq[1] - k[1] * unit];
             let sx = (x - k[0]).clamp(0, p.size[0] - 1);
             let sy = (y - k[1]).clamp(0, p.size[1] - 1);

@@ -81,6 +81,10 @@ pub struct PassParams {
     pub distortion_max: u32,
     /// This level's distance from the finest (`2^steps` finest pixels per pixel).
     pub steps: u32,
+    /// Anisometric gather: 1 reads the exemplar texel nearest to the coordinate instead
+    /// of interpolating (advection: sub-pixel motion must not blur the texture).
+    pub nearest: u32,
+    pub _pad: [u32; 3],
 }
 
 /// Dynamic uniform offsets must be multiples of this (the WebGPU default limit).

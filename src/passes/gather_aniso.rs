@@ -6,6 +6,11 @@ use super::common::{bilinear_rgba, PassParams};
 
 /// Bilinear RGBA8 colour at a fixed-point exemplar position.
 pub fn color_at(p: &PassParams, colors: &[[u8; 4]], c: [i32; 2]) -> [u8; 4] {
+    let c = if p.nearest != 0 {
+        c.map(|v| ((v + 128) >> 8) << 8)
+    } else {
+        c
+    };
     bilinear_rgba(colors, p.ex_size, p.tileable != 0, c).map(|v| v as u8)
 }
 

@@ -401,6 +401,8 @@ impl SynthPlan {
             ],
             distortion_max: 0,
             steps: (self.levels.len() - 1 - level) as u32,
+            nearest: 0,
+            _pad: [0; 3],
         }
     }
 }
@@ -533,6 +535,8 @@ impl SynthPlan {
         levels: usize,
         c: f32,
         passes: u32,
+        frame: u64,
+        nearest: bool,
     ) -> Vec<Dispatch> {
         let n = self.levels.len();
         let first = n - levels.clamp(1, n);
@@ -572,15 +576,46 @@ impl SynthPlan {
                 });
             }
             // The level's fills and corrections, as in synthesis (no jitter: the
-            // advected pixels keep their place, the re-upsampled ones are rare).
-            out.extend(full.iter().filter(|d| {
-                d.level == level && matches!(d.kind, PassKind::CorrectAniso | PassKind::Fill)
-            }));
+            // advected pixels keep their place, the re-upsampled ones are rare). At the
+            // finest level, 3/4 of the pixels and most of the cost, each frame runs half
+            // of the subpasses, alternating, so every pixel is corrected every other frame.
+            let finest = level + 1 == n;
+            let mut subpass = 0u64;
+            let mut keep_fill = true;
+            for d in full.iter().filter(|d| d.level == level) {
+                match d.kind {
+                    PassKind::CorrectAniso => {
+                        keep_fill = !finest || passes > 1 || subpass % 2 == frame % 2;
+                        subpass += 1;
+                        if keep_fill {
+                            out.push(*d);
+                        }
+                    }
+                    PassKind::Fill if keep_fill => out.push(*d),
+                    _ => {}
+                }
+            }
         }
         if let Some(g) = full.last() {
-            out.push(*g);
+            out.push(Dispatch {
+                params: PassParams {
+                    nearest: nearest as u32,
+                    ..g.params
+                },
+                ..*g
+            });
         }
         out
+    }
+
+    /// The first frame of an advection: the whole synthesis, with the gather every
+    /// later frame uses (`nearest`: the nearest exemplar texel, else bilinear).
+    pub fn advect_first_schedule(&self, analysis: &Analysis, nearest: bool) -> Vec<Dispatch> {
+        let mut s = self.schedule(analysis);
+        if let Some(g) = s.last_mut() {
+            g.params.nearest = nearest as u32;
+        }
+        s
     }
 
     /// Every dispatch of the synthesis, in order.

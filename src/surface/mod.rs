@@ -3,6 +3,7 @@
 //! synthesis in the atlas on the GPU, textured glTF out.
 
 pub mod atlas;
+pub mod flow;
 pub mod gltf_io;
 pub mod maps;
 pub mod mesh;

@@ -1,0 +1,320 @@
+//! `texsyn advect`: texture advection frame by frame along a flow, on an image or on a
+//! mesh's atlas; frames to a folder (or an animated GIF), temporal figures on stderr.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use clap::Args;
+use texsyn::flow::{Flow, FLOW_HELP};
+use texsyn::gpu::advect::{AdvectOptions, Advection};
+use texsyn::gpu::synth::GpuSynthesizer;
+use texsyn::gpu::GpuContext;
+use texsyn::quality::FloatImage;
+use texsyn::{AnalysisOptions, SynthParams};
+
+use super::field::{parse_field, FieldSpec, FIELD_HELP};
+use super::synth::{read_source, Source};
+use super::{fail, fmt_duration, parse_size, CliResult, TileArgs, Ui};
+
+/// Advect a synthesized texture along a flow, frame by frame
+#[derive(Args, Debug)]
+#[command(
+    long_about = "Advect a synthesized texture along a flow, frame by frame (paper section 7): \
+                  the coordinates of the finest levels move with the flow without resampling, \
+                  pixels the flow distorts too much are re-synthesized from the coarser level, \
+                  and a correction pass keeps the texture intact. Writes the frames to a folder \
+                  (frame_00000.png, ...) or an animated GIF (OUT.gif), and prints per-frame cost \
+                  and temporal-coherence figures. With --mesh the texture moves over the \
+                  surface's atlas (velocities from a 3D flow projected into it) and each frame is \
+                  rendered headlessly."
+)]
+pub struct AdvectArgs {
+    /// Exemplar image, or an analysis file written by `texsyn analyze`
+    pub exemplar: PathBuf,
+
+    /// The flow (see --help)
+    #[arg(long, value_name = "SPEC", value_parser = parse_flow, long_help = FLOW_HELP)]
+    pub flow: Flow,
+
+    /// Frames to advect after the first
+    #[arg(long, default_value_t = 100, value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    pub frames: u32,
+
+    /// Output: a folder for PNG frames, or a .gif for an animation
+    #[arg(short, long, value_name = "DIR|OUT.gif")]
+    pub output: PathBuf,
+
+    /// Output size (2D)
+    #[arg(long, value_name = "N[xM]", value_parser = parse_size, default_value = "256")]
+    pub size: [u32; 2],
+
+    /// Time step: a frame moves the texture by velocity * dt
+    #[arg(long, default_value_t = 1.0, allow_hyphen_values = true)]
+    pub dt: f32,
+
+    /// Write every K-th frame only
+    #[arg(long, value_name = "K", default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+    pub every: u32,
+
+    /// Advected levels (the finest ones)
+    #[arg(long, default_value_t = AdvectOptions::default().levels)]
+    pub levels: usize,
+
+    /// Distortion threshold |J_obs - J|_F beyond which a pixel is re-synthesized
+    #[arg(long, default_value_t = AdvectOptions::default().threshold)]
+    pub threshold: f32,
+
+    /// Correction passes per advected level and frame
+    #[arg(long, default_value_t = AdvectOptions::default().passes)]
+    pub passes: u32,
+
+    /// Gather the nearest exemplar texel (sharp, aliased sub-pixel motion) instead of
+    /// interpolating
+    #[arg(long)]
+    pub nearest: bool,
+
+    /// Jacobian field the texture follows (2D; see `texsyn synth --help`)
+    #[arg(long, value_name = "SPEC", value_parser = parse_field, long_help = FIELD_HELP)]
+    pub field: Option<FieldSpec>,
+
+    #[arg(long, default_value_t = SynthParams::default().seed)]
+    pub seed: u32,
+
+    /// Compute texture energy every K frames (it is the costly figure; 0: first and last)
+    #[arg(long, value_name = "K", default_value_t = 0)]
+    pub energy_every: usize,
+
+    /// Advect over this mesh's atlas instead of an image (.gltf/.glb); frames are renders
+    #[arg(long, value_name = "MESH")]
+    pub mesh: Option<PathBuf>,
+
+    /// Atlas size for --mesh
+    #[arg(long, default_value_t = 512)]
+    pub atlas_size: u32,
+
+    #[command(flatten)]
+    pub tile: TileArgs,
+}
+
+fn parse_flow(s: &str) -> Result<Flow, String> {
+    s.parse()
+}
+
+enum Sink {
+    Folder(PathBuf),
+    Gif(PathBuf, Vec<image::RgbaImage>),
+}
+
+pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
+    if !args.dt.is_finite() || args.dt <= 0.0 {
+        return Err(fail(format!("--dt {}: the time step must be a positive number", args.dt)));
+    }
+    let is_gif = args
+        .output
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("gif"));
+    let mut sink = if is_gif {
+        super::check_output_dir(&args.output)?;
+        Sink::Gif(args.output.clone(), Vec::new())
+    } else {
+        if args.output.exists() && !args.output.is_dir() {
+            return Err(fail(format!(
+                "{} exists and is not a folder: give a folder for the frames, or a .gif",
+                args.output.display()
+            )));
+        }
+        std::fs::create_dir_all(&args.output).map_err(|e| {
+            fail(format!("cannot create the folder {}: {e}", args.output.display()))
+        })?;
+        Sink::Folder(args.output.clone())
+    };
+    args.flow.validate()?;
+    let source = read_source(&args.exemplar, None, args.tile.get())?;
+    let ctx = GpuContext::headless()?;
+    ui.info(format!("adapter: {}", ctx.describe()));
+    let analysis = match source {
+        Source::Analysis(a) => a,
+        Source::Image(ex) => {
+            let options = AnalysisOptions {
+                tileable: args.tile.get(),
+                ..AnalysisOptions::default()
+            };
+            texsyn::analysis::analyze(&ex, &options, ui.analysis_progress())?
+        }
+    };
+    let exemplar_image = FloatImage::new(
+        analysis.width,
+        analysis.height,
+        1,
+        analysis.colors.iter().map(|c| c[0] as f32 / 255.0).collect(),
+    )?;
+    let levels = analysis.levels.len();
+    let synthesizer = Arc::new(GpuSynthesizer::new(&ctx, Arc::new(analysis))?);
+    let options = AdvectOptions {
+        levels: args.levels,
+        threshold: args.threshold,
+        passes: args.passes,
+        nearest: args.nearest,
+    };
+
+    // 2D output, or a surface: the atlas plus what turns 3D flow into atlas velocities.
+    let mut surface = None;
+    let mut params = SynthParams {
+        width: args.size[0],
+        height: args.size[1],
+        seed: args.seed,
+        ..SynthParams::default()
+    };
+    if let Some(mesh_path) = &args.mesh {
+        let (mut mesh, _) = texsyn::surface::gltf_io::load_mesh(mesh_path)?;
+        mesh.validate_and_repair()?;
+        let opts = texsyn::surface::pipeline::SurfaceOptions {
+            atlas: texsyn::surface::atlas::AtlasOptions::for_size(args.atlas_size),
+            ..Default::default()
+        };
+        let prepared = texsyn::surface::pipeline::prepare(&mesh, levels, &opts)?;
+        params = texsyn::surface::pipeline::atlas_params(&prepared, &params);
+        surface = Some(prepared);
+    } else if let Some(f) = &args.field {
+        params.field = Some(f.resolve([0, 0], params.width, params.height)?);
+    }
+    let (w, h) = (params.width, params.height);
+
+    // The cost of a whole synthesis of the same output, for comparison.
+    let mut full = Vec::new();
+    for _ in 0..3 {
+        let t = Instant::now();
+        synthesizer.synthesize(&ctx, &params)?;
+        full.push(t.elapsed());
+    }
+    let full_time = median(&mut full);
+
+    let mut adv = Advection::new(&ctx, synthesizer.clone(), &params, options)?;
+    let velocity_at = |t: u32| -> CliResult<Vec<[f32; 2]>> {
+        match &surface {
+            Some(prep) => Ok(texsyn::surface::flow::atlas_velocity(prep, &args.flow, t as f32)?),
+            None => Ok(args.flow.sample(w, h, t as f32)?),
+        }
+    };
+    let mut frames: Vec<FloatImage> = Vec::new();
+    let mut displacements: Vec<Vec<[f32; 2]>> = vec![Vec::new()];
+    let mut costs = Vec::new();
+    let mut emit = |adv: &Advection, index: u32, frames: &mut Vec<FloatImage>| -> CliResult<()> {
+        let rgba = adv.read_rgba8(&ctx)?;
+        frames.push(FloatImage::new(
+            w,
+            h,
+            1,
+            rgba.chunks(4).map(|p| p[0] as f32 / 255.0).collect(),
+        )?);
+        if index % args.every != 0 {
+            return Ok(());
+        }
+        let image = match &surface {
+            Some(prep) => {
+                let tex = texsyn::surface::render::SurfaceTexture::Color {
+                    rgba: &rgba,
+                    width: w,
+                    height: h,
+                };
+                texsyn::surface::render::render_views(
+                    &ctx,
+                    &prep.atlas.mesh,
+                    &tex,
+                    &texsyn::surface::render::RenderOptions {
+                        views: 2,
+                        view_size: 256,
+                        ..Default::default()
+                    },
+                )?
+            }
+            None => image::RgbaImage::from_raw(w, h, rgba).ok_or_else(|| fail("internal: size"))?,
+        };
+        match &mut sink {
+            Sink::Folder(dir) => {
+                let path = dir.join(format!("frame_{index:05}.png"));
+                texsyn::image_io::save_image_atomic(&path, image.width(), image.height(), 4, image.as_raw())?;
+            }
+            Sink::Gif(_, list) => list.push(image),
+        }
+        Ok(())
+    };
+    emit(&adv, 0, &mut frames)?;
+    for t in 1..=args.frames {
+        let v = velocity_at(t)?;
+        let start = Instant::now();
+        adv.step(&ctx, &v, args.dt)?;
+        ctx.wait_idle()?;
+        costs.push(start.elapsed());
+        emit(&adv, t, &mut frames)?;
+        displacements.push(v.iter().map(|p| [p[0] * args.dt, p[1] * args.dt]).collect());
+        ui.progress(format!("frame {t}/{}", args.frames));
+    }
+    ui.end_progress();
+    if let Sink::Gif(path, list) = &sink {
+        write_gif(path, list)?;
+    }
+    let frame_time = median(&mut costs);
+    let every = if args.energy_every == 0 { usize::MAX } else { args.energy_every };
+    let report = texsyn::quality::temporal_report(
+        &exemplar_image,
+        &frames,
+        |t| displacements[t].clone(),
+        every,
+    )?;
+    ui.info(format!("output: {} ({} frames of {w}x{h})", args.output.display(), args.frames + 1));
+    ui.info(format!(
+        "cost per frame (GPU, synchronized, median): {} = {:.0}% of a whole synthesis ({})",
+        fmt_duration(frame_time),
+        100.0 * frame_time.as_secs_f64() / full_time.as_secs_f64(),
+        fmt_duration(full_time)
+    ));
+    ui.info(format!(
+        "frame-to-frame difference, warped by the flow: {:.4} (unwarped {:.4})",
+        report.mean_warped_diff(),
+        report.mean_unwarped_diff()
+    ));
+    let energies: Vec<String> = report
+        .energy
+        .iter()
+        .map(|(t, e)| format!("frame {t}: {e:.5}"))
+        .collect();
+    ui.info(format!("texture energy: {}", energies.join(", ")));
+    ui.info(format!(
+        "sharpness (high-frequency energy / exemplar's): first {:.3}, last {:.3}",
+        report.sharpness.first().copied().unwrap_or(0.0),
+        report.sharpness.last().copied().unwrap_or(0.0)
+    ));
+    Ok(())
+}
+
+fn median(v: &mut [Duration]) -> Duration {
+    v.sort();
+    v.get(v.len() / 2).copied().unwrap_or_default()
+}
+
+fn write_gif(path: &Path, frames: &[image::RgbaImage]) -> CliResult<()> {
+    texsyn::image_io::write_atomic(path, |w| {
+        let mut enc = image::codecs::gif::GifEncoder::new_with_speed(w, 10);
+        enc.set_repeat(image::codecs::gif::Repeat::Infinite)
+            .map_err(|e| texsyn::Error::Write {
+                path: path.to_path_buf(),
+                reason: e.to_string(),
+            })?;
+        for f in frames {
+            let frame = image::Frame::from_parts(
+                f.clone(),
+                0,
+                0,
+                image::Delay::from_numer_denom_ms(40, 1),
+            );
+            enc.encode_frame(frame).map_err(|e| texsyn::Error::Write {
+                path: path.to_path_buf(),
+                reason: e.to_string(),
+            })?;
+        }
+        Ok(())
+    })?;
+    Ok(())
+}
