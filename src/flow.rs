@@ -75,7 +75,8 @@ impl Flow {
                 let a = turn * t;
                 let (c, s) = (a.cos(), a.sin());
                 at(&|_x, y| {
-                    let shear = 0.5 * speed * ((y / h * 6.0 + t * 0.05) * std::f32::consts::TAU).sin();
+                    let shear =
+                        0.5 * speed * ((y / h * 6.0 + t * 0.05) * std::f32::consts::TAU).sin();
                     [speed * c + shear, speed * s]
                 })
             }
@@ -160,7 +161,9 @@ impl std::str::FromStr for Flow {
                 rest.split(',').map(|x| x.trim().parse::<f32>()).collect();
             match v {
                 Ok(v) if v.len() == n && v.iter().all(|x| x.is_finite()) => Ok(v),
-                _ => Err(format!("'{s}': {kind} takes {n} finite numbers separated by commas")),
+                _ => Err(format!(
+                    "'{s}': {kind} takes {n} finite numbers separated by commas"
+                )),
             }
         };
         Ok(match kind {

@@ -1432,12 +1432,7 @@ pub fn high_frequency_energy(img: &FloatImage) -> f64 {
 /// Mean absolute difference between `cur` and `prev` sampled bilinearly at `p - d(p)`
 /// (grey, 0-1), over the pixels at least `margin` from the border whose source lies
 /// inside `prev`.
-pub fn warped_difference(
-    prev: &FloatImage,
-    cur: &FloatImage,
-    d: &[[f32; 2]],
-    margin: u32,
-) -> f64 {
+pub fn warped_difference(prev: &FloatImage, cur: &FloatImage, d: &[[f32; 2]], margin: u32) -> f64 {
     let (a, b) = (prev.to_grey(), cur.to_grey());
     let (w, h) = (b.width as usize, b.height as usize);
     let m = margin as usize;

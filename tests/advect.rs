@@ -19,8 +19,7 @@ fn ctx() -> &'static GpuContext {
 }
 
 fn crop(size: u32) -> Exemplar {
-    let full =
-        texsyn::image_io::load_exemplar(std::path::Path::new("assets/gravel.png")).unwrap();
+    let full = texsyn::image_io::load_exemplar(std::path::Path::new("assets/gravel.png")).unwrap();
     let c = full.channels as usize;
     let (mut values, mut colors) = (Vec::new(), Vec::new());
     for y in 0..size as usize {
@@ -47,7 +46,13 @@ fn setup(size: u32) -> (Arc<Analysis>, Arc<GpuSynthesizer>, Exemplar) {
 }
 
 fn grey(rgba: &[u8], w: u32, h: u32) -> FloatImage {
-    FloatImage::new(w, h, 1, rgba.chunks(4).map(|p| p[0] as f32 / 255.0).collect()).unwrap()
+    FloatImage::new(
+        w,
+        h,
+        1,
+        rgba.chunks(4).map(|p| p[0] as f32 / 255.0).collect(),
+    )
+    .unwrap()
 }
 
 fn ex_image(ex: &Exemplar) -> FloatImage {
@@ -62,7 +67,14 @@ fn ex_image(ex: &Exemplar) -> FloatImage {
 
 /// Mean absolute difference between `b` and `a` shifted by (dx, dy) (b[p] vs a[p - d]),
 /// over the pixels where both exist, away from the border by `m`.
-fn warped_diff(a: &[u8], b: &[u8], w: u32, h: u32, d: impl Fn(f32, f32) -> (f32, f32), m: u32) -> f64 {
+fn warped_diff(
+    a: &[u8],
+    b: &[u8],
+    w: u32,
+    h: u32,
+    d: impl Fn(f32, f32) -> (f32, f32),
+    m: u32,
+) -> f64 {
     let (mut sum, mut n) = (0.0, 0usize);
     for y in m..h - m {
         for x in m..w - m {
@@ -101,25 +113,64 @@ fn advection_frames_gpu_match_cpu() {
     let plan: SynthPlan = adv.plan().clone();
     let jac = plan.jacobians();
     let mut cpu = vec![[0i32; 2]; (plan.coord_count + plan.flag_count()) as usize];
-    run_cpu_frame(&a, &plan.advect_first_schedule(&a, opts.nearest), &mut cpu, &jac, &[], &[]);
+    run_cpu_frame(
+        &a,
+        &plan.advect_first_schedule(&a, opts.nearest),
+        &mut cpu,
+        &jac,
+        &[],
+        &[],
+    );
     assert!(adv.read_coords(ctx()).unwrap() == cpu, "frame 0 differs");
     let flows = [
-        Flow::Vortex { cx: 0.3, cy: 0.6, omega: 0.05 },
-        Flow::Source { cx: 0.5, cy: 0.5, strength: 2.5 },
+        Flow::Vortex {
+            cx: 0.3,
+            cy: 0.6,
+            omega: 0.05,
+        },
+        Flow::Source {
+            cx: 0.5,
+            cy: 0.5,
+            strength: 2.5,
+        },
         Flow::Uniform { vx: 1.3, vy: -0.7 },
     ];
     for (f, flow) in flows.iter().enumerate() {
         let v = flow.sample(48, 40, f as f32).unwrap();
         adv.step(ctx(), &v, 1.5).unwrap();
         let q: Vec<[i32; 2]> = v.iter().map(|&v| quantize_velocity(v, 1.5)).collect();
-        let out = run_cpu_frame(&a, &plan.advect_schedule(&a, opts.levels, opts.threshold, opts.passes, f as u64, opts.nearest), &mut cpu, &jac, &[], &q)
-            .unwrap();
-        assert!(adv.read_coords(ctx()).unwrap() == cpu, "frame {} ({flow:?}) differs", f + 1);
+        let out = run_cpu_frame(
+            &a,
+            &plan.advect_schedule(
+                &a,
+                opts.levels,
+                opts.threshold,
+                opts.passes,
+                f as u64,
+                opts.nearest,
+            ),
+            &mut cpu,
+            &jac,
+            &[],
+            &q,
+        )
+        .unwrap();
+        assert!(
+            adv.read_coords(ctx()).unwrap() == cpu,
+            "frame {} ({flow:?}) differs",
+            f + 1
+        );
         let rgba: Vec<u8> = out.colors.iter().flatten().copied().collect();
         assert_eq!(adv.read_rgba8(ctx()).unwrap(), rgba);
     }
     // The caller-owned GPU velocity path gives the same frame as host velocities.
-    let v = Flow::Vortex { cx: 0.5, cy: 0.5, omega: -0.03 }.sample(48, 40, 0.0).unwrap();
+    let v = Flow::Vortex {
+        cx: 0.5,
+        cy: 0.5,
+        omega: -0.03,
+    }
+    .sample(48, 40, 0.0)
+    .unwrap();
     let mut a1 = Advection::new(ctx(), synth.clone(), &params, opts).unwrap();
     let mut a2 = Advection::new(ctx(), synth, &params, opts).unwrap();
     a1.step(ctx(), &v, 2.0).unwrap();
@@ -137,35 +188,251 @@ fn advection_frames_gpu_match_cpu() {
     assert!(a1.read_coords(ctx()).unwrap() == a2.read_coords(ctx()).unwrap());
 }
 
+/// Mean absolute grey difference (0-255) between two RGBA8 images.
+fn plain_diff(a: &[u8], b: &[u8]) -> f64 {
+    a.chunks(4)
+        .zip(b.chunks(4))
+        .map(|(x, y)| (x[0] as f64 - y[0] as f64).abs())
+        .sum::<f64>()
+        / (a.len() / 4) as f64
+}
+
 #[test]
-fn flows_probe() {
+fn uniform_flow_of_whole_pixels_translates_exactly() {
+    let (_a, synth, _) = setup(64);
+    let (w, h) = (96u32, 80u32);
+    let params = SynthParams {
+        width: w,
+        height: h,
+        ..SynthParams::default()
+    };
+    let mut adv = Advection::new(ctx(), synth, &params, AdvectOptions::default()).unwrap();
+    let v = Flow::Uniform { vx: 2.0, vy: -1.0 }
+        .sample(w, h, 0.0)
+        .unwrap();
+    let mut prev = adv.read_rgba8(ctx()).unwrap();
+    for _ in 0..5 {
+        adv.step(ctx(), &v, 1.0).unwrap();
+        let cur = adv.read_rgba8(ctx()).unwrap();
+        let warped = warped_diff(&prev, &cur, w, h, |_, _| (2.0, -1.0), 6);
+        let still = warped_diff(&prev, &cur, w, h, |_, _| (0.0, 0.0), 6);
+        // The coordinates move exactly; the correction pass then retouches some pixels.
+        let (mut same, mut total) = (0, 0);
+        for y in 6..h - 6 {
+            for x in 6..w - 6 {
+                let i = ((y * w + x) * 4) as usize;
+                let j = (((y + 1) * w + x - 2) * 4) as usize;
+                same += (cur[i] == prev[j]) as usize;
+                total += 1;
+            }
+        }
+        let same = same as f64 / total as f64;
+        eprintln!("warped {warped:.3}, unwarped {still:.3}, identical {same:.3}");
+        assert!(
+            warped < 0.1 * still && same > 0.85,
+            "warped {warped}, unwarped {still}, identical {same}"
+        );
+        prev = cur;
+    }
+}
+
+/// The scenario, smaller: a vortex for 300 frames.
+#[test]
+fn vortex_keeps_the_texture_for_300_frames() {
     let (_a, synth, ex) = setup(64);
     let (w, h) = (96u32, 96u32);
-    let params = SynthParams { width: w, height: h, ..SynthParams::default() };
-    for flow in [
-        Flow::Uniform { vx: 1.0, vy: 0.0 },
-        Flow::Uniform { vx: 0.35, vy: 0.2 },
-        Flow::Vortex { cx: 0.5, cy: 0.5, omega: 0.01 },
-        Flow::Source { cx: 0.5, cy: 0.5, strength: 0.5 },
-    ] {
-        let mut adv = Advection::new(ctx(), synth.clone(), &params, AdvectOptions::default()).unwrap();
-        let first = adv.read_rgba8(ctx()).unwrap();
-        let e0 = texture_energy(&ex_image(&ex), &grey(&first, w, h), 2).unwrap();
-        let mut prev = first.clone();
-        let (mut warped, mut plain) = (0.0, 0.0);
-        let frames = 60;
-        let v = flow.sample(w, h, 0.0).unwrap();
-        for _ in 0..frames {
-            adv.step(ctx(), &v, 1.0).unwrap();
-            let cur = adv.read_rgba8(ctx()).unwrap();
-            warped += warped_diff(&prev, &cur, w, h, |x, y| {
+    let params = SynthParams {
+        width: w,
+        height: h,
+        ..SynthParams::default()
+    };
+    // Resynthesizing from scratch: how much two independent frames differ.
+    let fresh = |seed| {
+        let s = synth
+            .synthesize_to_host(
+                ctx(),
+                &SynthParams {
+                    seed,
+                    ..params.clone()
+                },
+            )
+            .unwrap();
+        s.colors.iter().flatten().copied().collect::<Vec<u8>>()
+    };
+    let scratch = plain_diff(&fresh(1), &fresh(2));
+    let flow = Flow::Vortex {
+        cx: 0.5,
+        cy: 0.5,
+        omega: 0.02,
+    };
+    let v = flow.sample(w, h, 0.0).unwrap();
+    let mut adv = Advection::new(ctx(), synth, &params, AdvectOptions::default()).unwrap();
+    let exi = ex_image(&ex);
+    let mut prev = adv.read_rgba8(ctx()).unwrap();
+    let sharp0 = texsyn::quality::high_frequency_energy(&grey(&prev, w, h));
+    let (mut warped, mut energy50, mut n) = (0.0, 0.0, 0);
+    for t in 1..=300 {
+        adv.step(ctx(), &v, 1.0).unwrap();
+        let cur = adv.read_rgba8(ctx()).unwrap();
+        warped += warped_diff(
+            &prev,
+            &cur,
+            w,
+            h,
+            |x, y| {
                 let i = (y as u32 * w + x as u32) as usize;
                 (v[i][0], v[i][1])
-            }, 8);
-            plain += warped_diff(&prev, &cur, w, h, |_, _| (0.0, 0.0), 8);
-            prev = cur;
+            },
+            6,
+        );
+        n += 1;
+        if t == 50 {
+            energy50 = texture_energy(&exi, &grey(&cur, w, h), 2).unwrap();
         }
-        let e1 = texture_energy(&ex_image(&ex), &grey(&prev, w, h), 2).unwrap();
-        eprintln!("{flow:?}: energy {e0:.4} -> {e1:.4}, warped diff {:.2}, unwarped {:.2}", warped / frames as f64, plain / frames as f64);
+        prev = cur;
+    }
+    let energy300 = texture_energy(&exi, &grey(&prev, w, h), 2).unwrap();
+    let sharp300 = texsyn::quality::high_frequency_energy(&grey(&prev, w, h));
+    let warped = warped / n as f64;
+    eprintln!("scratch {scratch:.2}, warped {warped:.2}, energy 50 {energy50:.5} 300 {energy300:.5}, sharpness {sharp0:.5} -> {sharp300:.5}");
+    assert!(
+        warped < 0.6 * scratch,
+        "warped frame difference {warped} vs resynthesis {scratch}"
+    );
+    assert!(
+        (energy300 / energy50 - 1.0).abs() < 0.2,
+        "energy {energy50} -> {energy300}"
+    );
+    assert!(sharp300 > 0.8 * sharp0, "blurred: {sharp0} -> {sharp300}");
+}
+
+#[test]
+fn bad_velocities_and_time_steps() {
+    let (_a, synth, _) = setup(32);
+    let params = SynthParams {
+        width: 40,
+        height: 32,
+        ..SynthParams::default()
+    };
+    let mut adv = Advection::new(ctx(), synth, &params, AdvectOptions::default()).unwrap();
+    let good = vec![[0.5f32, 0.0]; 40 * 32];
+    let err = |r: texsyn::Result<()>| r.unwrap_err().to_string();
+    assert!(err(adv.step(ctx(), &good[1..], 1.0)).contains("velocity field has"));
+    for dt in [0.0, -1.0, f32::NAN, f32::INFINITY] {
+        assert!(
+            err(adv.step(ctx(), &good, dt)).contains("time step"),
+            "dt {dt}"
+        );
+    }
+    let mut nan = good.clone();
+    nan[45] = [f32::NAN, 0.0];
+    assert!(err(adv.step(ctx(), &nan, 1.0)).contains("(5, 1)"));
+    // Huge velocities are clamped (documented), not an error or a panic.
+    let huge = vec![[1e30f32, -1e30]; 40 * 32];
+    adv.step(ctx(), &huge, 1.0).unwrap();
+    assert_eq!(quantize_velocity([1e30, -1e30], 1.0), [64 * 16, -64 * 16]);
+    assert_eq!(quantize_velocity([f32::NAN, 1.0], 1.0), [0, 16]);
+    // Parameters may change between frames, the size may not.
+    adv.set_params(&SynthParams {
+        seed: 5,
+        coherence: 2.0,
+        ..params.clone()
+    })
+    .unwrap();
+    adv.step(ctx(), &good, 1.0).unwrap();
+    assert!(adv
+        .set_params(&SynthParams {
+            width: 41,
+            ..params
+        })
+        .is_err());
+    assert!(adv
+        .set_options(AdvectOptions {
+            threshold: -1.0,
+            ..AdvectOptions::default()
+        })
+        .is_err());
+    ctx().take_uncaptured_errors().unwrap();
+}
+
+mod common;
+
+/// `texsyn advect` end to end (2D frames folder, GIF, a mesh) and its bad inputs.
+#[test]
+fn advect_cli() {
+    let dir = common::TempDir::new("advect-cli");
+    let run = |args: &[&str]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_texsyn"))
+            .args(args)
+            .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+            .output()
+            .unwrap()
+    };
+    let frames = dir.path("frames");
+    let o = run(&[
+        "advect",
+        "assets/gravel.png",
+        "--flow",
+        "vortex:0.5,0.5,0.02",
+        "--frames",
+        "4",
+        "--size",
+        "64",
+        "-o",
+        frames.to_str().unwrap(),
+        "--every",
+        "2",
+    ]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{stderr}");
+    for f in ["frame_00000.png", "frame_00002.png", "frame_00004.png"] {
+        assert!(frames.join(f).exists(), "{f} missing: {stderr}");
+    }
+    assert!(!frames.join("frame_00001.png").exists());
+    assert!(
+        stderr.contains("cost per frame") && stderr.contains("warped by the flow"),
+        "{stderr}"
+    );
+    let gif = dir.path("bunny.gif");
+    let o = run(&[
+        "advect",
+        "assets/gravel.png",
+        "--mesh",
+        "assets/meshes/bunny.glb",
+        "--atlas-size",
+        "128",
+        "--flow",
+        "vortex:0.5,0.5,0.05",
+        "--frames",
+        "2",
+        "-o",
+        gif.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(image::open(&gif).is_ok());
+    for (args, expect) in [
+        (vec!["--flow", "vortex", "--dt", "0"], "time step"),
+        (vec!["--flow", "vortex", "--dt", "-1"], "time step"),
+        (vec!["--flow", "uniform:nan,1"], "finite"),
+        (vec!["--flow", "swirly"], "unknown flow"),
+        (vec!["--flow", "image:missing.png"], "missing.png"),
+    ] {
+        let mut a = vec![
+            "advect",
+            "assets/gravel.png",
+            "--frames",
+            "1",
+            "--size",
+            "32",
+            "-o",
+        ];
+        let out = dir.path("bad");
+        a.push(out.to_str().unwrap());
+        a.extend(args.iter().copied());
+        let o = run(&a);
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{args:?} succeeded");
+        assert!(stderr.contains(expect), "{args:?}: {stderr}");
+        assert!(!stderr.contains("panicked"), "{stderr}");
     }
 }

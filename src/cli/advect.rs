@@ -69,10 +69,10 @@ pub struct AdvectArgs {
     #[arg(long, default_value_t = AdvectOptions::default().passes)]
     pub passes: u32,
 
-    /// Gather the nearest exemplar texel (sharp, aliased sub-pixel motion) instead of
-    /// interpolating
+    /// Interpolate the exemplar bilinearly at the advected coordinates (smoother
+    /// sub-pixel motion, but soft) instead of reading the nearest texel
     #[arg(long)]
-    pub nearest: bool,
+    pub bilinear: bool,
 
     /// Jacobian field the texture follows (2D; see `texsyn synth --help`)
     #[arg(long, value_name = "SPEC", value_parser = parse_field, long_help = FIELD_HELP)]
@@ -108,7 +108,10 @@ enum Sink {
 
 pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
     if !args.dt.is_finite() || args.dt <= 0.0 {
-        return Err(fail(format!("--dt {}: the time step must be a positive number", args.dt)));
+        return Err(fail(format!(
+            "--dt {}: the time step must be a positive number",
+            args.dt
+        )));
     }
     let is_gif = args
         .output
@@ -125,7 +128,10 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
             )));
         }
         std::fs::create_dir_all(&args.output).map_err(|e| {
-            fail(format!("cannot create the folder {}: {e}", args.output.display()))
+            fail(format!(
+                "cannot create the folder {}: {e}",
+                args.output.display()
+            ))
         })?;
         Sink::Folder(args.output.clone())
     };
@@ -147,7 +153,11 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
         analysis.width,
         analysis.height,
         1,
-        analysis.colors.iter().map(|c| c[0] as f32 / 255.0).collect(),
+        analysis
+            .colors
+            .iter()
+            .map(|c| c[0] as f32 / 255.0)
+            .collect(),
     )?;
     let levels = analysis.levels.len();
     let synthesizer = Arc::new(GpuSynthesizer::new(&ctx, Arc::new(analysis))?);
@@ -155,7 +165,7 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
         levels: args.levels,
         threshold: args.threshold,
         passes: args.passes,
-        nearest: args.nearest,
+        nearest: !args.bilinear,
     };
 
     // 2D output, or a surface: the atlas plus what turns 3D flow into atlas velocities.
@@ -193,7 +203,9 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
     let mut adv = Advection::new(&ctx, synthesizer.clone(), &params, options)?;
     let velocity_at = |t: u32| -> CliResult<Vec<[f32; 2]>> {
         match &surface {
-            Some(prep) => Ok(texsyn::surface::flow::atlas_velocity(prep, &args.flow, t as f32)?),
+            Some(prep) => Ok(texsyn::surface::flow::atlas_velocity(
+                prep, &args.flow, t as f32,
+            )?),
             None => Ok(args.flow.sample(w, h, t as f32)?),
         }
     };
@@ -234,7 +246,13 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
         match &mut sink {
             Sink::Folder(dir) => {
                 let path = dir.join(format!("frame_{index:05}.png"));
-                texsyn::image_io::save_image_atomic(&path, image.width(), image.height(), 4, image.as_raw())?;
+                texsyn::image_io::save_image_atomic(
+                    &path,
+                    image.width(),
+                    image.height(),
+                    4,
+                    image.as_raw(),
+                )?;
             }
             Sink::Gif(_, list) => list.push(image),
         }
@@ -256,14 +274,22 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
         write_gif(path, list)?;
     }
     let frame_time = median(&mut costs);
-    let every = if args.energy_every == 0 { usize::MAX } else { args.energy_every };
+    let every = if args.energy_every == 0 {
+        usize::MAX
+    } else {
+        args.energy_every
+    };
     let report = texsyn::quality::temporal_report(
         &exemplar_image,
         &frames,
         |t| displacements[t].clone(),
         every,
     )?;
-    ui.info(format!("output: {} ({} frames of {w}x{h})", args.output.display(), args.frames + 1));
+    ui.info(format!(
+        "output: {} ({} frames of {w}x{h})",
+        args.output.display(),
+        args.frames + 1
+    ));
     ui.info(format!(
         "cost per frame (GPU, synchronized, median): {} = {:.0}% of a whole synthesis ({})",
         fmt_duration(frame_time),
@@ -303,12 +329,8 @@ fn write_gif(path: &Path, frames: &[image::RgbaImage]) -> CliResult<()> {
                 reason: e.to_string(),
             })?;
         for f in frames {
-            let frame = image::Frame::from_parts(
-                f.clone(),
-                0,
-                0,
-                image::Delay::from_numer_denom_ms(40, 1),
-            );
+            let frame =
+                image::Frame::from_parts(f.clone(), 0, 0, image::Delay::from_numer_denom_ms(40, 1));
             enc.encode_frame(frame).map_err(|e| texsyn::Error::Write {
                 path: path.to_path_buf(),
                 reason: e.to_string(),

@@ -603,7 +603,12 @@ impl GpuSynthesizer {
         coords_buffer.clone()
     }
 
-    pub(crate) fn output_texture(&self, ctx: &GpuContext, width: u32, height: u32) -> wgpu::Texture {
+    pub(crate) fn output_texture(
+        &self,
+        ctx: &GpuContext,
+        width: u32,
+        height: u32,
+    ) -> wgpu::Texture {
         ctx.device.create_texture(&wgpu::TextureDescriptor {
             label: Some("texsyn output"),
             size: wgpu::Extent3d {

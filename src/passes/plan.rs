@@ -395,10 +395,7 @@ impl SynthPlan {
             // The band; the schedule's last fill of a level covers the whole gutter.
             fill_count: self.surface_layout.get(level).map_or(0, |s| s.band_count),
             flag_base: 0,
-            window_origin: [
-                self.params.origin[0],
-                self.params.origin[1],
-            ],
+            window_origin: [self.params.origin[0], self.params.origin[1]],
             distortion_max: 0,
             steps: (self.levels.len() - 1 - level) as u32,
             nearest: 0,

@@ -26,7 +26,9 @@ pub fn run(p: &PassParams, coords: &mut [[i32; 2]], jac: &[[i32; 4]]) {
     for y in 0..p.size[1] {
         for x in 0..p.size[0] {
             // Advection: only the pixels the distortion pass flagged.
-            if p.flag_base != 0 && coords[(p.flag_base + (y * p.size[0] + x) as u32) as usize][0] == 0 {
+            if p.flag_base != 0
+                && coords[(p.flag_base + (y * p.size[0] + x) as u32) as usize][0] == 0
+            {
                 continue;
             }
             let c = upsample_pixel(p, coords, jac, [x, y]);

@@ -32,7 +32,9 @@ pub fn atlas_velocity_from_vertices(
     }
     Ok(project(prepared, |t, w| {
         let [a, b, c] = mesh.triangles[t];
-        per_vertex[a as usize] * w[0] + per_vertex[b as usize] * w[1] + per_vertex[c as usize] * w[2]
+        per_vertex[a as usize] * w[0]
+            + per_vertex[b as usize] * w[1]
+            + per_vertex[c as usize] * w[2]
     }))
 }
 
