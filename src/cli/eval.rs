@@ -51,6 +51,23 @@ pub struct EvalArgs {
     /// Relative Frobenius tolerance of the Jacobian figures
     #[arg(long, value_name = "T", default_value_t = 0.15)]
     pub tolerance: f64,
+
+    /// Temporal coherence of an advected sequence: IMAGE is then a folder of frames
+    /// (frame_00000.png, ... as `texsyn advect` writes them, consecutive) advected along
+    /// this flow (same SPEC as `texsyn advect --flow`); reports the flow-warped and plain
+    /// frame-to-frame differences, texture energy per --energy-every frames and the
+    /// sharpness (high-frequency energy relative to the exemplar's) per frame
+    #[arg(long, value_name = "SPEC", value_parser = |s: &str| s.parse::<texsyn::flow::Flow>(),
+          conflicts_with_all = ["coords", "field"])]
+    pub flow: Option<texsyn::flow::Flow>,
+
+    /// Time step of --flow (velocity * dt per frame)
+    #[arg(long, default_value_t = 1.0, requires = "flow")]
+    pub dt: f32,
+
+    /// With --flow: texture energy every K frames (and the last)
+    #[arg(long, value_name = "K", default_value_t = 10, requires = "flow")]
+    pub energy_every: usize,
 }
 
 pub fn run(ui: &Ui, args: EvalArgs) -> CliResult<()> {
@@ -61,6 +78,9 @@ pub fn run(ui: &Ui, args: EvalArgs) -> CliResult<()> {
         )));
     }
     let exemplar = texsyn::image_io::load_exemplar(&args.exemplar)?;
+    if let Some(flow) = &args.flow {
+        return temporal(ui, &args, &exemplar, flow);
+    }
     let output = load_image(&args.image)?;
 
     let coords = match &args.coords {
@@ -135,6 +155,83 @@ pub fn run(ui: &Ui, args: EvalArgs) -> CliResult<()> {
         json.push_str(&format!(",\"jacobian\":{}}}", j.to_json()));
     }
     ui.out(json)
+}
+
+/// `eval --flow`: the temporal figures of a folder of frames.
+fn temporal(
+    ui: &Ui,
+    args: &EvalArgs,
+    exemplar: &texsyn::Exemplar,
+    flow: &texsyn::flow::Flow,
+) -> CliResult<()> {
+    if !args.dt.is_finite() || args.dt <= 0.0 {
+        return Err(fail(format!(
+            "--dt {}: the time step must be a positive number",
+            args.dt
+        )));
+    }
+    if !args.image.is_dir() {
+        return Err(fail(format!(
+            "{}: with --flow, give the folder of frames `texsyn advect -o FOLDER` wrote",
+            args.image.display()
+        )));
+    }
+    let mut paths: Vec<PathBuf> = std::fs::read_dir(&args.image)
+        .map_err(|e| fail(format!("cannot read {}: {e}", args.image.display())))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| {
+            p.file_name()
+                .and_then(|n| n.to_str())
+                .is_some_and(|n| n.starts_with("frame_") && n.ends_with(".png"))
+        })
+        .collect();
+    paths.sort();
+    if paths.len() < 2 {
+        return Err(fail(format!(
+            "{}: needs at least two frame_*.png files",
+            args.image.display()
+        )));
+    }
+    let frames: Vec<FloatImage> = paths
+        .iter()
+        .map(|p| load_image(p))
+        .collect::<CliResult<_>>()?;
+    let (w, h) = (frames[0].width, frames[0].height);
+    if frames.iter().any(|f| (f.width, f.height) != (w, h)) {
+        return Err(fail("the frames do not all have the same size"));
+    }
+    let dt = args.dt;
+    let report = quality::temporal_report(
+        &FloatImage::from_exemplar(exemplar),
+        &frames,
+        |t| {
+            flow.sample(w, h, t as f32)
+                .map(|v| v.iter().map(|p| [p[0] * dt, p[1] * dt]).collect())
+                .unwrap_or_default()
+        },
+        args.energy_every,
+    )?;
+    let list = |v: &[f64]| {
+        v.iter()
+            .map(|x| json_number(*x))
+            .collect::<Vec<_>>()
+            .join(",")
+    };
+    let energy = report
+        .energy
+        .iter()
+        .map(|(t, e)| format!("[{t},{}]", json_number(*e)))
+        .collect::<Vec<_>>()
+        .join(",");
+    ui.out(format!(
+        "{{\"frames\":{},\"mean_warped_diff\":{},\"mean_unwarped_diff\":{},\"warped_diff\":[{}],\"energy\":[{}],\"sharpness\":[{}]}}",
+        frames.len(),
+        json_number(report.mean_warped_diff()),
+        json_number(report.mean_unwarped_diff()),
+        list(&report.warped_diff),
+        energy,
+        list(&report.sharpness)
+    ))
 }
 
 fn json_number(v: f64) -> String {
