@@ -436,3 +436,63 @@ fn advect_cli() {
         assert!(!stderr.contains("panicked"), "{stderr}");
     }
 }
+
+/// Advection over a surface atlas: velocities from 3D vectors projected into the atlas,
+/// gutters refilled through the indirection maps; GPU = CPU.
+#[test]
+fn surface_advection_gpu_matches_cpu() {
+    let (a, synth, _) = setup(32);
+    let mut mesh = texsyn::surface::Mesh::cube(1.0, 2);
+    mesh.validate_and_repair().unwrap();
+    let opts = texsyn::surface::pipeline::SurfaceOptions {
+        atlas: texsyn::surface::atlas::AtlasOptions::for_size(64),
+        ..Default::default()
+    };
+    let prep = texsyn::surface::pipeline::prepare(&mesh, a.levels.len(), &opts).unwrap();
+    let params = texsyn::surface::pipeline::atlas_params(&prep, &SynthParams::default());
+    let o = AdvectOptions::default();
+    let mut adv = Advection::new(ctx(), synth, &params, o).unwrap();
+    let plan = adv.plan().clone();
+    let jac = plan.jacobians();
+    let surface = plan.surface_words().0;
+    let mut cpu = vec![[0i32; 2]; (plan.coord_count + plan.flag_count()) as usize];
+    run_cpu_frame(
+        &a,
+        &plan.advect_first_schedule(&a, o.nearest),
+        &mut cpu,
+        &jac,
+        &surface,
+        &[],
+    );
+    let flow = Flow::Vortex {
+        cx: 0.5,
+        cy: 0.5,
+        omega: 0.2,
+    };
+    let v = texsyn::surface::flow::atlas_velocity(&prep, &flow, 0.0).unwrap();
+    assert!(v.iter().any(|p| p[0] != 0.0 || p[1] != 0.0));
+    let q: Vec<[i32; 2]> = v.iter().map(|&p| quantize_velocity(p, 1.0)).collect();
+    for f in 0..2u64 {
+        adv.step(ctx(), &v, 1.0).unwrap();
+        let s = plan.advect_schedule(&a, o.levels, o.threshold, o.passes, f, o.nearest);
+        run_cpu_frame(&a, &s, &mut cpu, &jac, &surface, &q);
+        assert!(
+            adv.read_coords(ctx()).unwrap() == cpu,
+            "frame {} differs",
+            f + 1
+        );
+    }
+    // Per-vertex vectors: the wrong count and NaN are errors.
+    let n = prep.atlas.mesh.positions.len();
+    assert!(texsyn::surface::flow::atlas_velocity_from_vertices(
+        &prep,
+        &vec![glam::Vec3::X; n - 1]
+    )
+    .is_err());
+    let mut bad = vec![glam::Vec3::X; n];
+    bad[0].x = f32::NAN;
+    assert!(texsyn::surface::flow::atlas_velocity_from_vertices(&prep, &bad).is_err());
+    let ok = texsyn::surface::flow::atlas_velocity_from_vertices(&prep, &vec![glam::Vec3::X; n])
+        .unwrap();
+    assert_eq!(ok.len(), 64 * 64);
+}
