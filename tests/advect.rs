@@ -393,6 +393,33 @@ fn advect_cli() {
         stderr.contains("cost per frame") && stderr.contains("warped by the flow"),
         "{stderr}"
     );
+    // An animated PNG: every frame in one file.
+    let apng = dir.path("anim.png");
+    assert!(run(&[
+        "advect",
+        "assets/gravel.png",
+        "--flow",
+        "uniform:1,0",
+        "--frames",
+        "3",
+        "--size",
+        "32",
+        "-q",
+        "-o",
+        apng.to_str().unwrap()
+    ])
+    .status
+    .success());
+    let bytes = std::fs::read(&apng).unwrap();
+    let actl = bytes
+        .windows(4)
+        .position(|w| w == b"acTL")
+        .expect("an acTL chunk");
+    assert_eq!(
+        u32::from_be_bytes(bytes[actl + 4..actl + 8].try_into().unwrap()),
+        4
+    );
+    assert_eq!(bytes.windows(4).filter(|w| *w == b"fcTL").count(), 4);
     let gif = dir.path("bunny.gif");
     let o = run(&[
         "advect",

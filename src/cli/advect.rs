@@ -41,7 +41,7 @@ pub struct AdvectArgs {
     #[arg(long, default_value_t = 100, value_parser = clap::value_parser!(u32).range(1..=100_000))]
     pub frames: u32,
 
-    /// Output: a folder for PNG frames, or a .gif for an animation
+    /// Output: a folder for PNG frames, or an animation: OUT.png (animated PNG) or OUT.gif
     #[arg(short, long, value_name = "DIR|OUT.gif")]
     pub output: PathBuf,
 
@@ -104,6 +104,7 @@ fn parse_flow(s: &str) -> Result<Flow, String> {
 enum Sink {
     Folder(PathBuf),
     Gif(PathBuf, Vec<image::RgbaImage>),
+    Apng(PathBuf, Vec<image::RgbaImage>),
 }
 
 pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
@@ -113,13 +114,17 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
             args.dt
         )));
     }
-    let is_gif = args
+    let ext = args
         .output
         .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("gif"));
-    let mut sink = if is_gif {
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase());
+    let mut sink = if ext.as_deref() == Some("gif") {
         super::check_output_dir(&args.output)?;
         Sink::Gif(args.output.clone(), Vec::new())
+    } else if ext.as_deref() == Some("png") {
+        super::check_output_dir(&args.output)?;
+        Sink::Apng(args.output.clone(), Vec::new())
     } else {
         if args.output.exists() && !args.output.is_dir() {
             return Err(fail(format!(
@@ -254,7 +259,7 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
                     image.as_raw(),
                 )?;
             }
-            Sink::Gif(_, list) => list.push(image),
+            Sink::Gif(_, list) | Sink::Apng(_, list) => list.push(image),
         }
         Ok(())
     };
@@ -270,8 +275,10 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
         ui.progress(format!("frame {t}/{}", args.frames));
     }
     ui.end_progress();
-    if let Sink::Gif(path, list) = &sink {
-        write_gif(path, list)?;
+    match &sink {
+        Sink::Gif(path, list) => write_gif(path, list)?,
+        Sink::Apng(path, list) => write_apng(path, list)?,
+        Sink::Folder(_) => {}
     }
     let frame_time = median(&mut costs);
     let every = if args.energy_every == 0 {
@@ -318,6 +325,30 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
 fn median(v: &mut [Duration]) -> Duration {
     v.sort();
     v.get(v.len() / 2).copied().unwrap_or_default()
+}
+
+/// An animated PNG (25 frames per second, looping), written atomically.
+fn write_apng(path: &Path, frames: &[image::RgbaImage]) -> CliResult<()> {
+    let Some(first) = frames.first() else {
+        return Err(fail("no frames to write"));
+    };
+    let err = |e: png::EncodingError| texsyn::Error::Write {
+        path: path.to_path_buf(),
+        reason: e.to_string(),
+    };
+    texsyn::image_io::write_atomic(path, |w| {
+        let mut enc = png::Encoder::new(w, first.width(), first.height());
+        enc.set_color(png::ColorType::Rgba);
+        enc.set_depth(png::BitDepth::Eight);
+        enc.set_animated(frames.len() as u32, 0).map_err(err)?;
+        enc.set_frame_delay(1, 25).map_err(err)?;
+        let mut writer = enc.write_header().map_err(err)?;
+        for f in frames {
+            writer.write_image_data(f.as_raw()).map_err(err)?;
+        }
+        writer.finish().map_err(err)
+    })?;
+    Ok(())
 }
 
 fn write_gif(path: &Path, frames: &[image::RgbaImage]) -> CliResult<()> {
