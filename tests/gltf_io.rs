@@ -5,7 +5,6 @@
 //! TEXSYN_REQUIRE_GLTF_VALIDATOR=1 (as in .ci/run) a missing validator fails the tests.
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use glam::{Vec2, Vec3, Vec4};
 use image::{Rgba, RgbaImage};
@@ -58,62 +57,8 @@ impl Drop for TempDir {
     }
 }
 
-fn repo() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
-/// Runs tools/validate_gltf.mjs (the Khronos validator) on `file`: its exit code and
-/// output, or None when the validator is not installed and not required (with
-/// TEXSYN_REQUIRE_GLTF_VALIDATOR=1 a missing validator panics).
-fn run_validator(file: &Path) -> Option<(Option<i32>, String)> {
-    let required = std::env::var("TEXSYN_REQUIRE_GLTF_VALIDATOR").as_deref() == Ok("1");
-    let skip = |why: String| {
-        if required {
-            panic!(
-                "{why}, and TEXSYN_REQUIRE_GLTF_VALIDATOR=1: install it with \
-                 `(cd tools && npm install --no-audit --no-fund)` (needs node and npm)"
-            );
-        }
-        eprintln!(
-            "note: {why}: skipping the Khronos glTF validator check of {} (install it with \
-             `cd tools && npm install`)",
-            file.display()
-        );
-        None
-    };
-    if !repo().join("tools/node_modules/gltf-validator").is_dir() {
-        return skip("tools/node_modules/gltf-validator is missing".into());
-    }
-    let out = match Command::new("node")
-        .arg(repo().join("tools/validate_gltf.mjs"))
-        .arg(file)
-        .current_dir(repo())
-        .output()
-    {
-        Ok(out) => out,
-        Err(e) => return skip(format!("cannot run node: {e}")),
-    };
-    let text = format!(
-        "{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    Some((out.status.code(), text))
-}
-
-/// The Khronos validator's report on `file` (None when skipped, see [`run_validator`]).
-/// Panics when it reports errors.
-fn khronos_validate(file: &Path) -> Option<String> {
-    let (code, text) = run_validator(file)?;
-    assert_eq!(
-        code,
-        Some(0),
-        "the Khronos glTF validator rejects {}:\n{text}",
-        file.display()
-    );
-    println!("{text}");
-    Some(text)
-}
+mod common;
+use common::{khronos_validate, repo, run_validator};
 
 fn solid(w: u32, h: u32, f: impl Fn(u32, u32) -> [u8; 4]) -> RgbaImage {
     RgbaImage::from_fn(w, h, |x, y| Rgba(f(x, y)))
