@@ -874,9 +874,18 @@ fn controls_end_to_end_and_their_bad_inputs() {
             "20",
             "--magnify",
             "2",
+            "--coords-out",
+            "m.exr",
         ],
     );
     assert_eq!(png_size(&dir.path("m.png")), (40, 40));
+    // The coordinates of the magnified synthesis: one per pixel before magnification,
+    // in the analysed (half-size) exemplar's pixels.
+    let (w, h, c) = texsyn::image_io::load_coords_exr_f32(&dir.path("m.exr")).unwrap();
+    assert_eq!((w, h), (20, 20));
+    assert!(c
+        .iter()
+        .all(|v| v[0] >= -1.0 && v[0] <= 65.0 && v[1] >= -1.0 && v[1] <= 65.0));
     ok(
         &dir,
         &[

@@ -83,7 +83,8 @@ pub struct SynthArgs {
 
     /// Magnification: analyse the exemplar downsampled F times, synthesize --size, and
     /// render the output F times larger (2, 4 or 8) with the full-resolution exemplar's
-    /// colours. Needs an exemplar image (not an analysis file)
+    /// colours. Needs an exemplar image (not an analysis file). With --coords-out the
+    /// coordinates (per pixel before magnification) are written too; not with --also
     #[arg(long, value_name = "F", value_parser = parse_magnify)]
     pub magnify: Option<u32>,
 
@@ -252,10 +253,8 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
                 source = Source::Image(small);
             }
         }
-        if args.coords_out.is_some() || !args.also.is_empty() {
-            return Err(fail(
-                "--magnify cannot be combined with --coords-out or --also (yet)",
-            ));
+        if !args.also.is_empty() {
+            return Err(fail("--magnify cannot be combined with --also (yet)"));
         }
     }
 
@@ -356,7 +355,31 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
         let rgba8 = gpu.read_rgba8(&ctx)?;
         let readback = t.elapsed();
         let t = Instant::now();
-        texsyn::image_io::save_image_atomic(&args.output, gpu.width, gpu.height, channels, &rgba8)?;
+        // The coordinates are those of the analysed (low-resolution) exemplar, one per
+        // output pixel before magnification: the same synthesis, read back.
+        if let Some(coords_path) = &args.coords_out {
+            let s = synthesizer
+                .synthesize_to_host(&ctx, &params)
+                .map_err(cli_hint)?;
+            texsyn::image_io::save_coords_exr_f32_atomic(
+                coords_path,
+                width,
+                height,
+                &s.coords_f32(),
+            )?;
+        }
+        if let Err(e) = texsyn::image_io::save_image_atomic(
+            &args.output,
+            gpu.width,
+            gpu.height,
+            channels,
+            &rgba8,
+        ) {
+            if let Some(c) = &args.coords_out {
+                let _ = std::fs::remove_file(c);
+            }
+            return Err(e.into());
+        }
         timings = Timings::Separate {
             synth,
             readback,
