@@ -18,28 +18,8 @@ fn ctx() -> &'static GpuContext {
     })
 }
 
-fn crop(size: u32) -> Exemplar {
-    let full = texsyn::image_io::load_exemplar(std::path::Path::new("assets/gravel.png")).unwrap();
-    let c = full.channels as usize;
-    let (mut values, mut colors) = (Vec::new(), Vec::new());
-    for y in 0..size as usize {
-        for x in 0..size as usize {
-            let i = y * full.width as usize + x;
-            values.extend_from_slice(&full.values[i * c..(i + 1) * c]);
-            colors.push(full.colors[i]);
-        }
-    }
-    Exemplar {
-        width: size,
-        height: size,
-        channels: full.channels,
-        values,
-        colors,
-    }
-}
-
 fn setup(size: u32) -> (Arc<Analysis>, Arc<GpuSynthesizer>, Exemplar) {
-    let ex = crop(size);
+    let ex = common::gravel_crop(size);
     let a = Arc::new(analyze(&ex, &AnalysisOptions::default(), |_| {}).unwrap());
     let s = Arc::new(GpuSynthesizer::new(ctx(), a.clone()).unwrap());
     (a, s, ex)

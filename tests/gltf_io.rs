@@ -4,8 +4,6 @@
 //! (tools/validate_gltf.mjs) when it is installed (`cd tools && npm install`); with
 //! TEXSYN_REQUIRE_GLTF_VALIDATOR=1 (as in .ci/run) a missing validator fails the tests.
 
-use std::path::{Path, PathBuf};
-
 use glam::{Vec2, Vec3, Vec4};
 use image::{Rgba, RgbaImage};
 use texsyn::surface::gltf_io::{load_mesh, write_glb, LoadReport, MaterialImages};
@@ -16,49 +14,8 @@ use texsyn::Error;
 // Helpers
 // ---------------------------------------------------------------------------------------
 
-struct TempDir(PathBuf);
-impl TempDir {
-    fn new(tag: &str) -> Self {
-        let nanos = std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .unwrap()
-            .as_nanos();
-        let d = std::env::temp_dir().join(format!(
-            "texsyn-test-gltfio-{tag}-{}-{nanos}",
-            std::process::id()
-        ));
-        std::fs::create_dir_all(&d).unwrap();
-        TempDir(d)
-    }
-    fn join(&self, name: &str) -> PathBuf {
-        self.0.join(name)
-    }
-    /// Every file under the directory (recursively), relative names, sorted.
-    fn files(&self) -> Vec<String> {
-        fn walk(dir: &Path, base: &Path, out: &mut Vec<String>) {
-            for e in std::fs::read_dir(dir).unwrap() {
-                let p = e.unwrap().path();
-                if p.is_dir() {
-                    walk(&p, base, out);
-                } else {
-                    out.push(p.strip_prefix(base).unwrap().display().to_string());
-                }
-            }
-        }
-        let mut v = Vec::new();
-        walk(&self.0, &self.0, &mut v);
-        v.sort();
-        v
-    }
-}
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
-
 mod common;
-use common::{khronos_validate, repo, run_validator};
+use common::{khronos_validate, repo, run_validator, TempDir};
 
 fn solid(w: u32, h: u32, f: impl Fn(u32, u32) -> [u8; 4]) -> RgbaImage {
     RgbaImage::from_fn(w, h, |x, y| Rgba(f(x, y)))

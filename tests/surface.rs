@@ -3,7 +3,7 @@
 use std::sync::{Arc, OnceLock};
 
 use glam::{Vec2, Vec3};
-use texsyn::analysis::{analyze, Analysis, AnalysisOptions, Exemplar};
+use texsyn::analysis::{analyze, Analysis, AnalysisOptions};
 use texsyn::gpu::{synth::GpuSynthesizer, GpuContext};
 use texsyn::passes::plan::{PassKind, SynthPlan};
 use texsyn::passes::run_cpu_surface;
@@ -20,33 +20,20 @@ fn ctx() -> &'static GpuContext {
     })
 }
 
-fn crop(w: u32, h: u32) -> Exemplar {
-    let full = texsyn::image_io::load_exemplar(std::path::Path::new("assets/gravel.png")).unwrap();
-    let c = full.channels as usize;
-    let (mut values, mut colors) = (Vec::new(), Vec::new());
-    for y in 0..h as usize {
-        for x in 0..w as usize {
-            let i = y * full.width as usize + x;
-            values.extend_from_slice(&full.values[i * c..(i + 1) * c]);
-            colors.push(full.colors[i]);
-        }
-    }
-    Exemplar {
-        width: w,
-        height: h,
-        channels: full.channels,
-        values,
-        colors,
-    }
-}
-
 fn analysis(size: u32) -> Arc<Analysis> {
     static CACHE: OnceLock<std::sync::Mutex<Vec<(u32, Arc<Analysis>)>>> = OnceLock::new();
     let mut c = CACHE.get_or_init(Default::default).lock().unwrap();
     if let Some((_, a)) = c.iter().find(|(s, _)| *s == size) {
         return a.clone();
     }
-    let a = Arc::new(analyze(&crop(size, size), &AnalysisOptions::default(), |_| {}).unwrap());
+    let a = Arc::new(
+        analyze(
+            &common::gravel_crop(size),
+            &AnalysisOptions::default(),
+            |_| {},
+        )
+        .unwrap(),
+    );
     c.push((size, a.clone()));
     a
 }

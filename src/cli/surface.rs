@@ -80,7 +80,7 @@ pub struct SurfaceArgs {
     /// Magnify 2, 4 or 8 times: synthesize with a downsampled exemplar and read colours
     /// from the full one (the atlas texture is that many times larger; renders magnify
     /// in the fragment shader)
-    #[arg(long, value_name = "F", value_parser = parse_magnify)]
+    #[arg(long, value_name = "F", value_parser = super::synth::parse_magnify)]
     pub magnify: Option<u32>,
 
     /// Tangent-space normal map aligned with the exemplar, embedded as the material's
@@ -117,13 +117,6 @@ fn parse_scale(s: &str) -> Result<ScaleSource, String> {
 
 fn parse_direction(s: &str) -> Result<DirectionSource, String> {
     s.parse::<DirectionSource>().map_err(|e| e.to_string())
-}
-
-fn parse_magnify(s: &str) -> Result<u32, String> {
-    match s {
-        "2" | "4" | "8" => Ok(s.parse().unwrap()),
-        _ => Err(format!("'{s}': the magnification factor must be 2, 4 or 8")),
-    }
 }
 
 pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
@@ -189,18 +182,9 @@ pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
     }
     let mut hi_res = None;
     if let Some(f) = args.magnify {
-        match source {
-            Source::Analysis(_) => {
-                return Err(fail(
-                    "--magnify needs the exemplar image (its full-resolution colours), not an analysis file",
-                ))
-            }
-            Source::Image(ex) => {
-                let (small, hi) = texsyn::image_io::downsample_exemplar(&ex, f)?;
-                hi_res = Some((hi, small.width * f, small.height * f, f));
-                source = Source::Image(small);
-            }
-        }
+        let (small, hi) = super::synth::magnify_source(source, f)?;
+        source = small;
+        hi_res = Some(hi);
         if material_maps.iter().any(Option::is_some) {
             return Err(fail(
                 "--magnify cannot be combined with material maps (--normal-map, --roughness-map, --occlusion-map) yet",

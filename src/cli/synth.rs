@@ -123,7 +123,7 @@ pub struct AlsoMap {
     pub normal: bool,
 }
 
-fn parse_magnify(s: &str) -> Result<u32, String> {
+pub fn parse_magnify(s: &str) -> Result<u32, String> {
     match s {
         "2" | "4" | "8" => Ok(s.parse().unwrap()),
         _ => Err(format!("'{s}': the magnification factor must be 2, 4 or 8")),
@@ -188,6 +188,24 @@ pub fn read_source(path: &Path, k: Option<u32>, tileable: Option<bool>) -> CliRe
     Ok(Source::Analysis(analysis))
 }
 
+/// The full-resolution exemplar for magnification: RGBA8 pixels, width, height, factor.
+pub type HiRes = (Vec<[u8; 4]>, u32, u32, u32);
+
+/// `--magnify F`: the exemplar downsampled F times (what is analysed and synthesized)
+/// and its full-resolution colours (what the output reads).
+pub fn magnify_source(source: Source, f: u32) -> CliResult<(Source, HiRes)> {
+    match source {
+        Source::Analysis(_) => Err(fail(
+            "--magnify needs the exemplar image (its full-resolution colours), not an analysis file",
+        )),
+        Source::Image(ex) => {
+            let (small, hi) = texsyn::image_io::downsample_exemplar(&ex, f)?;
+            let hi_res = (hi, small.width * f, small.height * f, f);
+            Ok((Source::Image(small), hi_res))
+        }
+    }
+}
+
 /// The library's size errors name its API (`SynthParams::origin`); name the option.
 pub fn cli_hint(e: texsyn::Error) -> texsyn::Error {
     match e {
@@ -241,18 +259,9 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
     // Magnification: analyse a downsampled copy, keep the full colours.
     let mut hi_res = None;
     if let Some(f) = args.magnify {
-        match source {
-            Source::Analysis(_) => {
-                return Err(fail(
-                    "--magnify needs the exemplar image (its full-resolution colours), not an analysis file",
-                ))
-            }
-            Source::Image(ex) => {
-                let (small, hi) = texsyn::image_io::downsample_exemplar(&ex, f)?;
-                hi_res = Some((hi, small.width * f, small.height * f, f));
-                source = Source::Image(small);
-            }
-        }
+        let (small, hi) = magnify_source(source, f)?;
+        source = small;
+        hi_res = Some(hi);
         if !args.also.is_empty() {
             return Err(fail("--magnify cannot be combined with --also (yet)"));
         }

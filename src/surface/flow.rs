@@ -7,6 +7,7 @@
 use glam::{Vec2, Vec3};
 
 use super::atlas::{barycentric_2d, rasterize, NONE};
+use super::maps::SurfaceGeometry;
 use super::pipeline::PreparedSurface;
 use crate::error::{Error, Result};
 use crate::flow::Flow;
@@ -79,23 +80,17 @@ fn project(prepared: &PreparedSurface, v: impl Fn(usize, [f32; 3]) -> Vec3) -> V
     let atlas = &prepared.atlas;
     let size = atlas.size as usize;
     let ids = rasterize(atlas, 0);
+    let geometry = SurfaceGeometry::new(atlas);
     let mut out = vec![[0.0f32; 2]; size * size];
     for (i, &t) in ids.iter().enumerate() {
         if t == NONE {
             continue;
         }
         let t = t as usize;
-        let uv = atlas.uv_texels(t);
-        let p = atlas.mesh.corners(t);
-        let (e1, e2) = (uv[1] - uv[0], uv[2] - uv[0]);
-        let det = e1.perp_dot(e2);
+        let (uv, det, [jx, jy]) = geometry.triangle(t);
         if det == 0.0 {
             continue;
         }
-        // Jf columns: d(surface)/d(atlas x), d(surface)/d(atlas y).
-        let (q1, q2) = (p[1] - p[0], p[2] - p[0]);
-        let jx = (q1 * e2.y - q2 * e1.y) / det;
-        let jy = (q2 * e1.x - q1 * e2.x) / det;
         let centre = Vec2::new((i % size) as f32 + 0.5, (i / size) as f32 + 0.5);
         let w = barycentric_2d(uv, det, centre);
         let vec = v(t, w);

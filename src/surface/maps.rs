@@ -511,6 +511,13 @@ impl SurfaceGeometry {
         }
     }
 
+    /// Triangle `t`'s atlas corners (finest texels), their signed area, and `Jf`'s
+    /// columns d(surface)/d(atlas x), d(surface)/d(atlas y) (zero for a flat triangle).
+    pub fn triangle(&self, t: usize) -> ([Vec2; 3], f32, [Vec3; 2]) {
+        let tri = &self.tris[t];
+        (tri.uv, tri.uv_area, tri.jf)
+    }
+
     /// [`walk`] over this atlas.
     pub fn walk(&self, atlas: &Atlas, start: u32, from: Vec2, to: Vec2) -> WalkEnd {
         walk(

@@ -76,6 +76,50 @@ impl TempDir {
     pub fn path(&self, name: &str) -> PathBuf {
         self.0.join(name)
     }
+
+    pub fn join(&self, name: &str) -> PathBuf {
+        self.path(name)
+    }
+
+    /// Every file under the directory (recursively), relative names, sorted.
+    pub fn files(&self) -> Vec<String> {
+        fn walk(dir: &Path, base: &Path, out: &mut Vec<String>) {
+            for e in std::fs::read_dir(dir).unwrap() {
+                let p = e.unwrap().path();
+                if p.is_dir() {
+                    walk(&p, base, out);
+                } else {
+                    out.push(p.strip_prefix(base).unwrap().display().to_string());
+                }
+            }
+        }
+        let mut v = Vec::new();
+        walk(&self.0, &self.0, &mut v);
+        v.sort();
+        v
+    }
+}
+
+/// The top-left `size` x `size` crop of the bundled gravel exemplar (small exemplars
+/// keep GPU tests fast).
+pub fn gravel_crop(size: u32) -> texsyn::analysis::Exemplar {
+    let full = texsyn::image_io::load_exemplar(std::path::Path::new("assets/gravel.png")).unwrap();
+    let c = full.channels as usize;
+    let (mut values, mut colors) = (Vec::new(), Vec::new());
+    for y in 0..size as usize {
+        for x in 0..size as usize {
+            let i = y * full.width as usize + x;
+            values.extend_from_slice(&full.values[i * c..(i + 1) * c]);
+            colors.push(full.colors[i]);
+        }
+    }
+    texsyn::analysis::Exemplar {
+        width: size,
+        height: size,
+        channels: full.channels,
+        values,
+        colors,
+    }
 }
 
 impl Drop for TempDir {
