@@ -66,6 +66,11 @@ pub struct BenchArgs {
     /// from files are not accepted here since every size is benchmarked)
     #[arg(long, value_name = "SPEC", value_parser = super::field::parse_field)]
     pub field: Option<super::field::FieldSpec>,
+
+    /// Also time every dispatch on its own (submit + wait each; median over --runs) and
+    /// print, per size, the time by level and pass kind
+    #[arg(long)]
+    pub per_pass: bool,
 }
 
 struct Stats {
@@ -228,7 +233,65 @@ pub fn run(ui: &Ui, args: BenchArgs) -> CliResult<()> {
             Err(e) => format!("{size:<11} error: {e}"),
         };
         ui.out(line)?;
+        if args.per_pass && check_output_size(&ctx, w, h).is_ok() {
+            per_pass_table(ui, &ctx, &synthesizer, &params, &args)?;
+        }
     }
+    Ok(())
+}
+
+/// Per level and pass kind, the median over `--runs` of the summed dispatch times.
+fn per_pass_table(
+    ui: &Ui,
+    ctx: &GpuContext,
+    synthesizer: &GpuSynthesizer,
+    params: &SynthParams,
+    args: &BenchArgs,
+) -> CliResult<()> {
+    let mut runs: Vec<Vec<(texsyn::passes::PassKind, usize, Duration)>> = Vec::new();
+    for i in 0..args.warmup + args.runs {
+        ui.progress(format!("per-pass run {}/{}", i + 1, args.warmup + args.runs));
+        let r = synthesizer.profile(ctx, params).map_err(cli_hint)?;
+        ctx.take_uncaptured_errors()?;
+        if i >= args.warmup {
+            runs.push(r);
+        }
+    }
+    ui.end_progress();
+    // Group (level, kind) in schedule order.
+    let mut keys: Vec<(usize, texsyn::passes::PassKind)> = Vec::new();
+    for &(kind, level, _) in &runs[0] {
+        if !keys.contains(&(level, kind)) {
+            keys.push((level, kind));
+        }
+    }
+    let mut total = Duration::ZERO;
+    ui.out(format!("  {:<6} {:<14} {:>10} {:>11}", "level", "pass", "dispatches", "median"))?;
+    for &(level, kind) in &keys {
+        let sums: Vec<Duration> = runs
+            .iter()
+            .map(|r| {
+                r.iter()
+                    .filter(|(k, l, _)| *k == kind && *l == level)
+                    .map(|(_, _, t)| *t)
+                    .sum()
+            })
+            .collect();
+        let count = runs[0]
+            .iter()
+            .filter(|(k, l, _)| *k == kind && *l == level)
+            .count();
+        let m = stats(sums).median;
+        total += m;
+        ui.out(format!(
+            "  {:<6} {:<14} {:>10} {:>11}",
+            level,
+            format!("{kind:?}"),
+            count,
+            fmt_duration(m)
+        ))?;
+    }
+    ui.out(format!("  sum of medians (one submission per dispatch): {}", fmt_duration(total)))?;
     Ok(())
 }
 

@@ -904,6 +904,34 @@ impl GpuSynthesizer {
         })
     }
 
+    /// Times every dispatch of a synthesis on its own (submit + wait per dispatch, so
+    /// the total exceeds a normal synthesis by the per-submission overhead). Returns
+    /// the schedule's (kind, level) and the wall time of each dispatch, in order.
+    pub fn profile(
+        &self,
+        ctx: &GpuContext,
+        params: &SynthParams,
+    ) -> Result<Vec<(PassKind, usize, std::time::Duration)>> {
+        let plan = SynthPlan::new(&self.analysis, params)?;
+        self.check_output(ctx, &plan)?;
+        let schedule = plan.schedule(&self.analysis);
+        let texture = ctx.scoped(|| self.output_texture(ctx, params.width, params.height))?;
+        let view = texture.create_view(&Default::default());
+        let mut out = Vec::with_capacity(schedule.len());
+        for (i, d) in schedule.iter().enumerate() {
+            let mut encoder = ctx.device.create_command_encoder(&Default::default());
+            ctx.scoped(|| {
+                self.record(ctx, &mut encoder, &plan, &schedule[i..=i], &view, i == 0, &[]);
+            })?;
+            let buffer = encoder.finish();
+            let t = std::time::Instant::now();
+            ctx.scoped(|| ctx.queue.submit([buffer]))?;
+            wait(ctx)?;
+            out.push((d.kind, d.level, t.elapsed()));
+        }
+        Ok(out)
+    }
+
     /// Test hook: runs only the first `count` dispatches of the schedule and returns the
     /// whole coordinate array (every level), to compare with the CPU mirror pass by pass.
     pub fn run_prefix(

@@ -16,11 +16,11 @@ pub mod plan;
 pub mod upsample;
 pub mod upsample_aniso;
 
-pub use plan::{DistanceMode, LevelPlan, SynthParams, SynthPlan};
+pub use plan::{DistanceMode, LevelPlan, PassKind, SynthParams, SynthPlan};
 
 use crate::analysis::Analysis;
 use crate::error::Result;
-use plan::{Dispatch, PassKind};
+use plan::Dispatch;
 
 /// A synthesized window: exemplar coordinates and RGBA8 colours, row-major.
 #[derive(Clone, Debug, PartialEq)]
