@@ -20,8 +20,9 @@ fn velocity_at(abs_p: vec2<i32>) -> vec2<i32> {
 
 @compute @workgroup_size(8, 8, 1)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    opaque = i32(gid.z);
     let q = vec2<i32>(gid.xy);
-    if (any(q >= params.size)) {
+    if (any(q >= (params.size | vec2<i32>(opaque)))) {
         return;
     }
     let i = params.coord_base + u32(q.y * params.size.x + q.x);

@@ -4,8 +4,9 @@
 
 @compute @workgroup_size(8, 8, 1)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    opaque = i32(gid.z);
     let q = vec2<i32>(gid.xy);
-    if (any(q >= params.size)) {
+    if (any(q >= (params.size | vec2<i32>(opaque)))) {
         return;
     }
     let t = u32(q.y * params.size.x + q.x);

@@ -7,8 +7,9 @@ const FILL_ROW: u32 = 2048u;
 
 @compute @workgroup_size(8, 8, 1)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    opaque = i32(gid.z);
     let e = gid.y * FILL_ROW + gid.x;
-    if (gid.x >= FILL_ROW || e >= params.fill_count) {
+    if (gid.x >= FILL_ROW || e >= (params.fill_count | u32(opaque))) {
         return;
     }
     let w = params.fill_base + 4u * e;

@@ -4,8 +4,9 @@
 
 @compute @workgroup_size(8, 8, 1)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    opaque = i32(gid.z);
     let p = vec2<i32>(gid.xy);
-    if (any(p >= params.window_size)) {
+    if (any(p >= (params.window_size | vec2<i32>(opaque)))) {
         return;
     }
     let q = p + params.window_offset;

@@ -10,13 +10,14 @@ fn color_u(c: vec2<i32>) -> vec4<i32> {
 
 @compute @workgroup_size(8, 8, 1)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    opaque = i32(gid.z);
     let p = vec2<i32>(gid.xy);
-    if (any(p >= params.window_size)) {
+    if (any(p >= (params.window_size | vec2<i32>(opaque)))) {
         return;
     }
     let q = p + params.window_offset;
     var c = coords[params.coord_base + u32(q.y * params.size.x + q.x)];
-    if (params.nearest != 0u) {
+    if ((params.nearest | u32(opaque)) != 0u) {
         c = ((c + vec2<i32>(128)) >> vec2<u32>(8u)) << vec2<u32>(8u);
     }
     let taps = bilinear_taps(read_coord_fx(c));

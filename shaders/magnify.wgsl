@@ -40,7 +40,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     opaque = i32(gid.z);
     let o = vec2<i32>(gid.xy);
     let big = i32(params.magnify);
-    if (any(o >= params.window_size * big)) {
+    if (any(o >= (params.window_size | vec2<i32>(opaque)) * big)) {
         return;
     }
     let den = 2 * big;

@@ -5,8 +5,9 @@
 
 @compute @workgroup_size(8, 8, 1)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    opaque = i32(gid.z);
     let q = vec2<i32>(gid.xy);
-    if (any(q >= params.size)) {
+    if (any(q >= (params.size | vec2<i32>(opaque)))) {
         return;
     }
     let abs_p = params.origin + q;
@@ -17,7 +18,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     var c = vec2<i32>(0);
-    if (params.parent_size.x > 0) {
+    if ((params.parent_size.x | opaque) > 0) {
         let pp = clamp((abs_p >> vec2<u32>(1u)) - params.parent_origin, vec2<i32>(0), params.parent_size - vec2<i32>(1));
         let parent = coords[params.parent_coord_base + u32(pp.y * params.parent_size.x + pp.x)];
         c = parent + scaled_jd(params.spacing, jac[i], abs_p & vec2<i32>(1));

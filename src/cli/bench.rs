@@ -250,7 +250,11 @@ fn per_pass_table(
 ) -> CliResult<()> {
     let mut runs: Vec<Vec<(texsyn::passes::PassKind, usize, Duration)>> = Vec::new();
     for i in 0..args.warmup + args.runs {
-        ui.progress(format!("per-pass run {}/{}", i + 1, args.warmup + args.runs));
+        ui.progress(format!(
+            "per-pass run {}/{}",
+            i + 1,
+            args.warmup + args.runs
+        ));
         let r = synthesizer.profile(ctx, params).map_err(cli_hint)?;
         ctx.take_uncaptured_errors()?;
         if i >= args.warmup {
@@ -266,7 +270,10 @@ fn per_pass_table(
         }
     }
     let mut total = Duration::ZERO;
-    ui.out(format!("  {:<6} {:<14} {:>10} {:>11}", "level", "pass", "dispatches", "median"))?;
+    ui.out(format!(
+        "  {:<6} {:<14} {:>10} {:>11}",
+        "level", "pass", "dispatches", "median"
+    ))?;
     for &(level, kind) in &keys {
         let sums: Vec<Duration> = runs
             .iter()
@@ -291,7 +298,10 @@ fn per_pass_table(
             fmt_duration(m)
         ))?;
     }
-    ui.out(format!("  sum of medians (one submission per dispatch): {}", fmt_duration(total)))?;
+    ui.out(format!(
+        "  sum of medians (one submission per dispatch): {}",
+        fmt_duration(total)
+    ))?;
     Ok(())
 }
 

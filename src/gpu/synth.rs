@@ -921,7 +921,15 @@ impl GpuSynthesizer {
         for (i, d) in schedule.iter().enumerate() {
             let mut encoder = ctx.device.create_command_encoder(&Default::default());
             ctx.scoped(|| {
-                self.record(ctx, &mut encoder, &plan, &schedule[i..=i], &view, i == 0, &[]);
+                self.record(
+                    ctx,
+                    &mut encoder,
+                    &plan,
+                    &schedule[i..=i],
+                    &view,
+                    i == 0,
+                    &[],
+                );
             })?;
             let buffer = encoder.finish();
             let t = std::time::Instant::now();
