@@ -179,7 +179,10 @@ pub fn run(ui: &Ui, args: BenchArgs) -> CliResult<()> {
     ui.out(format!("adapter: {}", ctx.describe()))?;
     ui.out(summary)?;
     ui.out(analysis_line)?;
-    ui.out(format!("GPU upload + pipelines: {}", fmt_duration(upload)))?;
+    ui.out(format!(
+        "GPU upload: {} (pipelines are built on first use, inside the warm-up)",
+        fmt_duration(upload)
+    ))?;
     ui.out(format!(
         "synthesis: {} passes, seed {}; {} warm-up + {} timed runs per size; GPU = submit + wait, no read-back",
         args.passes, args.seed, args.warmup, args.runs

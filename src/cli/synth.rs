@@ -477,7 +477,7 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
     }
     ui.info(format!("      device {}", fmt_duration(device_time)));
     ui.info(format!(
-        "      GPU upload + pipelines {}",
+        "      GPU upload {} (pipelines are built on first use, inside synthesis)",
         fmt_duration(upload_time)
     ));
     match timings {
