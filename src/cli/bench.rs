@@ -265,11 +265,19 @@ fn per_pass_table(
         }
     }
     ui.end_progress();
-    // Group (level, kind) in schedule order.
-    let mut keys: Vec<(usize, texsyn::passes::PassKind)> = Vec::new();
-    for &(kind, level, _) in &runs[0] {
-        if !keys.contains(&(level, kind)) {
-            keys.push((level, kind));
+    // Per (level, kind), in schedule order: the dispatch count and each run's total.
+    let mut groups: Vec<((usize, texsyn::passes::PassKind), usize, Vec<Duration>)> = Vec::new();
+    for (r, run) in runs.iter().enumerate() {
+        for &(kind, level, t) in run {
+            let i = match groups.iter().position(|g| g.0 == (level, kind)) {
+                Some(i) => i,
+                None => {
+                    groups.push(((level, kind), 0, vec![Duration::ZERO; runs.len()]));
+                    groups.len() - 1
+                }
+            };
+            groups[i].1 += (r == 0) as usize;
+            groups[i].2[r] += t;
         }
     }
     let mut total = Duration::ZERO;
@@ -277,20 +285,7 @@ fn per_pass_table(
         "  {:<6} {:<14} {:>10} {:>11}",
         "level", "pass", "dispatches", "median"
     ))?;
-    for &(level, kind) in &keys {
-        let sums: Vec<Duration> = runs
-            .iter()
-            .map(|r| {
-                r.iter()
-                    .filter(|(k, l, _)| *k == kind && *l == level)
-                    .map(|(_, _, t)| *t)
-                    .sum()
-            })
-            .collect();
-        let count = runs[0]
-            .iter()
-            .filter(|(k, l, _)| *k == kind && *l == level)
-            .count();
+    for ((level, kind), count, sums) in groups {
         let m = stats(sums).median;
         total += m;
         ui.out(format!(

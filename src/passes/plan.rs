@@ -523,9 +523,10 @@ impl SynthPlan {
     /// The dispatches of one advection frame (paper section 7): for each of the
     /// `levels` finest levels, coarse to fine, advect the coordinates in place, flag the
     /// pixels distorted beyond `c` (|J_obs - J|_F, Jacobian units), upsample only those
-    /// from the coarser level, then correct with `passes` passes as synthesis does; the
-    /// gather ends it. The coarser levels keep
-    /// the first frame's coordinates. Needs an anisometric plan (continuous coordinates).
+    /// from the coarser level, then correct with `passes` passes as synthesis does (with
+    /// `passes == 1`, half of the subpasses, the other half next frame); the gather ends
+    /// it. The coarser levels keep the first frame's coordinates. Needs an anisometric
+    /// plan (continuous coordinates).
     pub fn advect_schedule(
         &self,
         analysis: &Analysis,
