@@ -512,6 +512,48 @@ fn prepare<'a>(
 ///
 /// Errors: an image that is empty, inconsistent or smaller than the window.
 pub fn texture_energy(exemplar: &FloatImage, output: &FloatImage, radius: u32) -> Result<f64> {
+    let map = texture_energy_map(exemplar, output, radius)?;
+    // Summed per band of rows, then over bands, in a fixed order (deterministic).
+    let sums = map
+        .values
+        .chunks(BAND_ROWS * map.width as usize)
+        .map(|band| band.iter().map(|&v| v as f64).sum::<f64>());
+    Ok(sums.sum::<f64>() / (map.values.len() as f64 * map.dim as f64))
+}
+
+/// Per-window figures of [`texture_energy`]: the squared distance of every output
+/// window to its nearest exemplar window (divide by `dim` for a mean squared
+/// per-channel difference). Window `(x, y)` is centred on output pixel
+/// `(x + r, y + r)`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct EnergyMap {
+    /// Windows per row and per column: the output size minus `2r`.
+    pub width: u32,
+    pub height: u32,
+    /// Values per window (`(2r+1)^2 x channels`).
+    pub dim: u32,
+    /// Row-major squared distances, `width x height`.
+    pub values: Vec<f32>,
+}
+
+impl EnergyMap {
+    /// A heat map for display: each window's mean squared per-channel difference,
+    /// scaled so that `full_scale` is white, as grey `u8`, `width x height`.
+    pub fn to_grey8(&self, full_scale: f32) -> Vec<u8> {
+        let k = 255.0 / (full_scale.max(f32::MIN_POSITIVE) * self.dim as f32);
+        self.values
+            .iter()
+            .map(|&v| (v * k).round().clamp(0.0, 255.0) as u8)
+            .collect()
+    }
+}
+
+/// [`texture_energy`] window by window (see there for the search).
+pub fn texture_energy_map(
+    exemplar: &FloatImage,
+    output: &FloatImage,
+    radius: u32,
+) -> Result<EnergyMap> {
     let (ex, out, side) = prepare(exemplar, output, radius)?;
     let exw = Windows::new(&ex, side);
     let outw = Windows::new(&out, side);
@@ -561,7 +603,7 @@ pub fn texture_energy(exemplar: &FloatImage, output: &FloatImage, radius: u32) -
         let mut cand: Vec<(f32, u32)> = Vec::with_capacity(k + 1);
         // Best exemplar window of each output window of the previous row (in this band).
         let mut above: Vec<u32> = vec![u32::MAX; outw.nx];
-        let mut sum = 0.0f64;
+        let mut values = Vec::with_capacity(BAND_ROWS * outw.nx);
         for y in b * BAND_ROWS..((b + 1) * BAND_ROWS).min(outw.ny) {
             let mut left = u32::MAX;
             for (x, above) in above.iter_mut().enumerate() {
@@ -604,15 +646,19 @@ pub fn texture_energy(exemplar: &FloatImage, output: &FloatImage, radius: u32) -
                 for &(_, i) in cand.iter() {
                     consider(i, &mut best, &mut best_i);
                 }
-                sum += best as f64;
+                values.push(best);
                 left = best_i;
                 *above = best_i;
             }
         }
-        sum
+        values
     });
-    let n = outw.count() as f64;
-    Ok(sums.iter().sum::<f64>() / (n * dim as f64))
+    Ok(EnergyMap {
+        width: outw.nx as u32,
+        height: outw.ny as u32,
+        dim: dim as u32,
+        values: sums.concat(),
+    })
 }
 
 /// [`texture_energy`] by brute force (every output window against every exemplar
@@ -1030,6 +1076,141 @@ impl QualityReport {
     }
 }
 
+/// Fragments smaller than this many pixels count as broken features in
+/// [`feature_breakage`] (thin mortar or crack pieces cut off from their network).
+pub const MIN_FEATURE_FRAGMENT: usize = 20;
+
+/// How a binary feature mask (mortar, cracks, spot outlines) survives synthesis: the
+/// exemplar's mask resynthesized through the output's coordinate map, compared with the
+/// mask itself. See [`feature_breakage`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct FeatureBreakage {
+    /// Share of the synthesized mask's feature pixels in 8-connected fragments under
+    /// [`MIN_FEATURE_FRAGMENT`] pixels: features broken into crumbs.
+    pub fragment_fraction: f64,
+    /// The same share in the exemplar's own mask (the reference: a mask made of small
+    /// spots has a high share without any breakage).
+    pub exemplar_fragment_fraction: f64,
+    /// Fraction of output pixels that are feature, and of exemplar pixels.
+    pub coverage: f64,
+    pub exemplar_coverage: f64,
+    /// Texture energy (7x7 windows) of the synthesized mask against the exemplar's
+    /// mask, both as 0/1 images: feature shapes that never occur in the exemplar
+    /// (broken, cut, merged or dangling pieces) raise it.
+    pub mask_energy: f64,
+}
+
+impl FeatureBreakage {
+    pub fn to_json(&self) -> String {
+        format!(
+            "{{\"fragment_fraction\":{},\"exemplar_fragment_fraction\":{},\"coverage\":{},\"exemplar_coverage\":{},\"mask_energy\":{},\"min_fragment_pixels\":{}}}",
+            json_num(self.fragment_fraction),
+            json_num(self.exemplar_fragment_fraction),
+            json_num(self.coverage),
+            json_num(self.exemplar_coverage),
+            json_num(self.mask_energy),
+            MIN_FEATURE_FRAGMENT
+        )
+    }
+}
+
+/// Share of the `true` pixels of a row-major `w x h` mask that lie in 8-connected
+/// components under `min` pixels (no wrap-around); 0 for a mask without features.
+pub fn fragment_fraction(inside: &[bool], w: usize, h: usize, min: usize) -> f64 {
+    let mut seen = vec![false; inside.len()];
+    let (mut total, mut small) = (0usize, 0usize);
+    let mut stack = Vec::new();
+    let mut comp = Vec::new();
+    for start in 0..inside.len() {
+        if !inside[start] || seen[start] {
+            continue;
+        }
+        seen[start] = true;
+        stack.push(start);
+        comp.clear();
+        while let Some(i) = stack.pop() {
+            comp.push(i);
+            let (x, y) = ((i % w) as i64, (i / w) as i64);
+            for dy in -1..=1i64 {
+                for dx in -1..=1i64 {
+                    let (nx, ny) = (x + dx, y + dy);
+                    if nx < 0 || ny < 0 || nx >= w as i64 || ny >= h as i64 {
+                        continue;
+                    }
+                    let j = ny as usize * w + nx as usize;
+                    if inside[j] && !seen[j] {
+                        seen[j] = true;
+                        stack.push(j);
+                    }
+                }
+            }
+        }
+        total += comp.len();
+        if comp.len() < min {
+            small += comp.len();
+        }
+    }
+    if total == 0 {
+        0.0
+    } else {
+        small as f64 / total as f64
+    }
+}
+
+/// [`FeatureBreakage`] of an output whose coordinate map is `coords` (`out_w x out_h`,
+/// exemplar pixels, rounded to the nearest pixel; wrapped when `tileable`, else
+/// clamped) for the exemplar-sized feature `mask`.
+///
+/// Errors: a map whose length is not `out_w * out_h`, an output smaller than the 7x7
+/// window, a non-finite coordinate.
+pub fn feature_breakage(
+    mask: &crate::analysis::FeatureMask,
+    coords: &[[f32; 2]],
+    out_w: u32,
+    out_h: u32,
+    tileable: bool,
+) -> Result<FeatureBreakage> {
+    let (w, h) = (out_w as usize, out_h as usize);
+    if coords.len() != w * h || w == 0 || h == 0 {
+        return Err(invalid(format!(
+            "coordinate map has {} entries, expected {out_w}x{out_h}",
+            coords.len()
+        )));
+    }
+    let (ew, eh) = (mask.width as i64, mask.height as i64);
+    let mut out = Vec::with_capacity(w * h);
+    for c in coords {
+        if !(c[0].is_finite() && c[1].is_finite()) {
+            return Err(invalid("coordinate map holds a non-finite coordinate"));
+        }
+        let (x, y) = (c[0].round() as i64, c[1].round() as i64);
+        let (x, y) = if tileable {
+            (x.rem_euclid(ew), y.rem_euclid(eh))
+        } else {
+            (x.clamp(0, ew - 1), y.clamp(0, eh - 1))
+        };
+        out.push(mask.inside[(y * ew + x) as usize]);
+    }
+    let to_image = |m: &[bool], w: u32, h: u32| {
+        FloatImage::new(w, h, 1, m.iter().map(|&b| b as u8 as f32).collect())
+    };
+    let ex_img = to_image(&mask.inside, mask.width, mask.height)?;
+    let out_img = to_image(&out, out_w, out_h)?;
+    let coverage = |m: &[bool]| m.iter().filter(|&&b| b).count() as f64 / m.len() as f64;
+    Ok(FeatureBreakage {
+        fragment_fraction: fragment_fraction(&out, w, h, MIN_FEATURE_FRAGMENT),
+        exemplar_fragment_fraction: fragment_fraction(
+            &mask.inside,
+            mask.width as usize,
+            mask.height as usize,
+            MIN_FEATURE_FRAGMENT,
+        ),
+        coverage: coverage(&out),
+        exemplar_coverage: coverage(&mask.inside),
+        mask_energy: texture_energy(&ex_img, &out_img, DEFAULT_RADIUS)?,
+    })
+}
+
 /// Computes every figure: [`multiscale_energy`] with `radius` (use [`DEFAULT_RADIUS`]
 /// for the standard 7x7 windows), [`histogram_distance`], and [`verbatim_stats`] when a
 /// coordinate map is given (its exemplar size is `exemplar`'s).
@@ -1098,6 +1279,39 @@ pub fn shuffled_baseline(exemplar: &FloatImage, width: u32, height: u32, seed: u
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn fragment_fraction_counts_small_8_connected_pieces() {
+        // A 30 px line (diagonal steps join it: 8-connectivity), a 3 px crumb.
+        let (w, h) = (40usize, 10usize);
+        let mut m = vec![false; w * h];
+        for x in 0..30 {
+            m[(x % 2) * w + x] = true;
+        }
+        for x in 35..38 {
+            m[7 * w + x] = true;
+        }
+        let f = fragment_fraction(&m, w, h, MIN_FEATURE_FRAGMENT);
+        assert!((f - 3.0 / 33.0).abs() < 1e-12, "{f}");
+        assert_eq!(fragment_fraction(&vec![false; w * h], w, h, 20), 0.0);
+    }
+
+    #[test]
+    fn energy_map_agrees_with_the_mean() {
+        let ex = noise_image(24, 24, 3, 1);
+        let out = noise_image(40, 30, 3, 2);
+        let map = texture_energy_map(&ex, &out, 3).unwrap();
+        assert_eq!((map.width, map.height, map.dim), (34, 24, 147));
+        let mean = map.values.iter().map(|&v| v as f64).sum::<f64>() / (34.0 * 24.0 * 147.0);
+        let e = texture_energy(&ex, &out, 3).unwrap();
+        assert!((mean - e).abs() <= 1e-9 * e, "{mean} vs {e}");
+        // The exemplar itself has zero energy everywhere.
+        assert!(texture_energy_map(&ex, &ex, 3)
+            .unwrap()
+            .values
+            .iter()
+            .all(|&v| v == 0.0));
+    }
 
     fn noise_image(w: u32, h: u32, c: u32, seed: u64) -> FloatImage {
         let mut s = seed;

@@ -623,6 +623,90 @@ fn cli_feature_mask_and_appearance() {
     );
     let img = image::open(dir.path("out.png")).unwrap();
     assert_eq!((img.width(), img.height()), (48, 32));
+
+    // eval --feature-mask: the feature figures, from the coordinate map.
+    let out = texsyn(
+        &dir,
+        &[
+            "synth",
+            BRICK,
+            "-o",
+            "o.png",
+            "--size",
+            "64",
+            "--coords-out",
+            "o.exr",
+        ],
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let out = texsyn(
+        &dir,
+        &[
+            "eval",
+            BRICK,
+            "o.png",
+            "--coords",
+            "o.exr",
+            "--feature-mask",
+            mask_s,
+            "--energy-map",
+            "map.png",
+        ],
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let json = String::from_utf8_lossy(&out.stdout);
+    for key in [
+        "\"features\":{\"fragment_fraction\":",
+        "\"exemplar_coverage\":0.125",
+        "\"mask_energy\":",
+    ] {
+        assert!(json.contains(key), "{key} missing from {json}");
+    }
+    let map = image::open(dir.path("map.png")).unwrap();
+    assert_eq!((map.width(), map.height()), (64, 64));
+    fails(
+        &dir,
+        &[
+            "eval",
+            BRICK,
+            "o.png",
+            "--coords",
+            "o.exr",
+            "--feature-mask",
+            small_s,
+        ],
+        1,
+        &["64x64", "exemplar's size"],
+    );
+    fails(
+        &dir,
+        &["eval", BRICK, "o.png", "--feature-mask", mask_s],
+        2,
+        &["--coords"],
+    );
+    fails(
+        &dir,
+        &[
+            "eval",
+            BRICK,
+            "o.png",
+            "--energy-map",
+            "m2.png",
+            "--energy-scale",
+            "0",
+        ],
+        1,
+        &["--energy-scale"],
+    );
+    assert!(!dir.path("m2.png").exists());
 }
 
 // ---- quality ----------------------------------------------------------------------------
@@ -751,8 +835,10 @@ fn feature_mask_carries_structure_that_colour_lacks() {
         mask.inside.iter().map(|&b| b as u8 as f32).collect(),
     )
     .unwrap();
+    // Texture energy of the synthesized mask, and its share of feature pixels in small
+    // fragments (quality::feature_breakage, what `texsyn eval --feature-mask` reports).
     let mask_energy = |opts: AnalysisOptions| {
-        let mut total = 0.0;
+        let (mut total, mut fragments) = (0.0, 0.0);
         for seed in [1, 2] {
             let session = Session::builder()
                 .exemplar(ex.clone())
@@ -766,19 +852,38 @@ fn feature_mask_carries_structure_that_colour_lacks() {
                 .unwrap()
                 .to_grey();
             total += quality::texture_energy(&mask_image, &out, quality::DEFAULT_RADIUS).unwrap();
+            let b = quality::feature_breakage(&mask, &tex.synthesis.coords_f32(), 160, 160, true)
+                .unwrap();
+            // The coordinates gather the same mask the colours show.
+            assert!(
+                (b.mask_energy - quality::texture_energy(&mask_image, &out, 3).unwrap()).abs()
+                    < 1e-9
+            );
+            assert_eq!(
+                b.exemplar_fragment_fraction, 0.0,
+                "the brick mortar is one network"
+            );
+            fragments += b.fragment_fraction;
         }
-        total
+        (total, fragments)
     };
     let opts = |m: Option<FeatureMask>| AnalysisOptions {
         feature_mask: m,
         tileable: Some(true),
         ..Default::default()
     };
-    let without = mask_energy(opts(None));
-    let with = mask_energy(opts(Some(mask)));
-    eprintln!("texture energy of the synthesized mask: {with:.5} with the feature channel, {without:.5} without");
+    let (without, frag_without) = mask_energy(opts(None));
+    let (with, frag_with) = mask_energy(opts(Some(mask.clone())));
+    eprintln!(
+        "synthesized mask: texture energy {with:.5} with the feature channel, {without:.5} \
+         without; in fragments under 20 px {frag_with:.3} with, {frag_without:.3} without"
+    );
     assert!(
         with < 0.75 * without,
         "the feature channel did not carry the structure: {with} vs {without}"
+    );
+    assert!(
+        frag_with < frag_without,
+        "the feature channel did not keep the mortar whole: {frag_with} vs {frag_without}"
     );
 }

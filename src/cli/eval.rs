@@ -21,8 +21,9 @@ use super::{fail, CliResult, TileArgs, Ui};
                   wrap_seam_ratio: how visible the seam is when the image is tiled (mean \
                   difference across its wrap-around edges over the mean difference between \
                   neighbouring pixels; about 1 or below tiles seamlessly); jacobian (with \
-                  --field): how well the texture follows the field. Lower energy and EMD are \
-                  better."
+                  --field): how well the texture follows the field; features (with \
+                  --feature-mask): how the exemplar's features survive. Lower energy and EMD \
+                  are better."
 )]
 pub struct EvalArgs {
     /// The exemplar image (not an analysis file: the figures compare pixels)
@@ -68,6 +69,29 @@ pub struct EvalArgs {
     /// With --flow: texture energy every K frames (and the last)
     #[arg(long, value_name = "K", default_value_t = 10, requires = "flow")]
     pub energy_every: usize,
+
+    /// Feature mask of the exemplar (as for `texsyn synth --feature-mask`): with --coords,
+    /// reports how the features survive ("features": share of the resynthesized mask in
+    /// fragments under 20 px against the exemplar mask's share, coverage, and the 7x7
+    /// texture energy of the resynthesized mask)
+    #[arg(long, value_name = "FILE", requires = "coords")]
+    pub feature_mask: Option<PathBuf>,
+
+    /// Also write where the full-resolution texture energy lies, as a grey image of the
+    /// output's size (each pixel: the energy of the 7x7 window centred on it; the
+    /// 3-pixel border, which has no full window, is black)
+    #[arg(long, value_name = "FILE.png", conflicts_with = "flow")]
+    pub energy_map: Option<PathBuf>,
+
+    /// Energy shown as white in --energy-map (a mean squared difference per channel;
+    /// fixed, so maps of different images compare)
+    #[arg(
+        long,
+        value_name = "E",
+        default_value_t = 0.02,
+        requires = "energy_map"
+    )]
+    pub energy_scale: f32,
 }
 
 pub fn run(ui: &Ui, args: EvalArgs) -> CliResult<()> {
@@ -142,6 +166,9 @@ pub fn run(ui: &Ui, args: EvalArgs) -> CliResult<()> {
         _ => None,
     };
 
+    if let Some(path) = &args.energy_map {
+        write_energy_map(path, &exemplar, &output, args.energy_scale)?;
+    }
     let report = quality::evaluate(&exemplar, &output, quality::DEFAULT_RADIUS, map)?;
     let wrap_seam = quality::wrap_seam_ratio(&output)?;
     let mut json = report.to_json();
@@ -150,6 +177,13 @@ pub fn run(ui: &Ui, args: EvalArgs) -> CliResult<()> {
         ",\"wrap_seam_ratio\":{}}}",
         json_number(wrap_seam)
     ));
+    if let (Some(path), Some((w, h, c))) = (&args.feature_mask, &coords) {
+        let mask = texsyn::analysis::FeatureMask::load(path)?;
+        mask.check_size(ex_size[0], ex_size[1])?;
+        let b = quality::feature_breakage(&mask, c, *w, *h, tileable)?;
+        json.pop();
+        json.push_str(&format!(",\"features\":{}}}", b.to_json()));
+    }
     if let Some(j) = jacobian {
         json.pop();
         json.push_str(&format!(",\"jacobian\":{}}}", j.to_json()));
@@ -267,4 +301,33 @@ fn load_image(path: &Path) -> CliResult<FloatImage> {
     }
     let img = reader.decode().map_err(|e| bad(e.to_string()))?;
     Ok(FloatImage::from_dynamic(&img))
+}
+
+/// `--energy-map`: the per-window texture energy, centred on the output's pixels.
+fn write_energy_map(
+    path: &Path,
+    exemplar: &FloatImage,
+    output: &FloatImage,
+    scale: f32,
+) -> CliResult<()> {
+    if !(scale > 0.0 && scale.is_finite()) {
+        return Err(fail(format!(
+            "--energy-scale {scale}: give a positive number"
+        )));
+    }
+    let r = quality::DEFAULT_RADIUS;
+    let map = quality::texture_energy_map(exemplar, output, r)?;
+    let grey = map.to_grey8(scale);
+    let (w, h) = (output.width, output.height);
+    let mut rgba = vec![0u8; w as usize * h as usize * 4];
+    for y in 0..map.height {
+        for x in 0..map.width {
+            let v = grey[(y * map.width + x) as usize];
+            let i = (((y + r) * w + x + r) * 4) as usize;
+            rgba[i..i + 3].fill(v);
+            rgba[i + 3] = 255;
+        }
+    }
+    texsyn::image_io::save_image_atomic(path, w, h, 1, &rgba)?;
+    Ok(())
 }
