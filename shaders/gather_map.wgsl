@@ -1,22 +1,13 @@
 // Material-set gather (mirror: src/passes/gather_map.rs): an extra exemplar-aligned map
 // (bound as the colours) read at the finest level's coordinates, like the colour
 // gather (nearest for integer coordinates, bilinear for continuous ones). A tangent-
-// space normal map (map_kind 1) has its x, y rotated with the texture: by the rotation
-// part of J^-1 (2x2 polar decomposition, integer arithmetic).
+// space normal map (map_kind 1) has its x, y rotated with the texture (rotate_normal).
 #include "shared/common.wgsl"
 #include "shared/aniso.wgsl"
 
 fn map_u(c: vec2<i32>) -> vec4<i32> {
     let w = colors[ex_index(c)];
     return vec4<i32>(vec4<u32>(w, w >> 8u, w >> 16u, w >> 24u) & vec4<u32>(255u));
-}
-
-// floor(sqrt(x)) for 0 <= x < 2^30, exact: float estimate, then one correction step.
-fn isqrt(x: i32) -> i32 {
-    var r = i32(sqrt(f32(x)));
-    r -= select(0, 1, r * r > x);
-    r += select(0, 1, (r + 1) * (r + 1) <= x);
-    return r;
 }
 
 @compute @workgroup_size(8, 8, 1)
@@ -42,23 +33,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             + g.x * f.y * map_u(vec2<i32>(i0.x, i1.y)) + f.x * f.y * map_u(i1);
         v = (s + vec4<i32>(32768)) >> vec4<u32>(16u);
         if ((params.map_kind | u32(opaque)) == 1u) {
-            let j = jac[idx];
-            let n = 2 * v.xy - vec2<i32>(255);
-            var r: vec2<i32>;
-            if (j.x * j.w - j.y * j.z >= 0) {
-                // J's rotation part is [[a, -b], [b, a]] / L; J^-1's is its transpose.
-                let a = j.x + j.w;
-                let b = j.z - j.y;
-                let l = max(isqrt(a * a + b * b), 1);
-                r = vec2<i32>(a * n.x + b * n.y, a * n.y - b * n.x) / l;
-            } else {
-                // Reflection: [[a, b], [b, -a]] / L is its own inverse.
-                let a = j.x - j.w;
-                let b = j.z + j.y;
-                let l = max(isqrt(a * a + b * b), 1);
-                r = vec2<i32>(a * n.x + b * n.y, b * n.x - a * n.y) / l;
-            }
-            v = vec4<i32>(clamp((r + vec2<i32>(256)) >> vec2<u32>(1u), vec2<i32>(0), vec2<i32>(255)), v.zw);
+            v = rotate_normal(v, jac[idx]);
         }
     }
     textureStore(out_color, p, vec4<f32>(v) / 255.0);

@@ -3,7 +3,8 @@
 // exemplar E_H (bound as the colours, size hi_size = magnify x the analysed one).
 // Output pixel o sits at x = (o + 1/2) / F - 1/2 in synthesized pixels; it blends the
 // four nearest synthesized pixels q with bilinear weights, each predicting
-// E_H[F (S[q] + J(q) (x - q))]. Integer arithmetic: 2F(x - q) is an integer.
+// E_H[F (S[q] + J(q) (x - q))]. Integer arithmetic: 2F(x - q) is an integer. Material
+// sets: a tangent-space normal map (map_kind 1) has each prediction rotated by its J.
 #include "shared/common.wgsl"
 #include "shared/aniso.wgsl"
 
@@ -61,7 +62,12 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
                 off = (vec2<i32>(j.x * v.x + j.y * v.y, j.z * v.x + j.w * v.y) + vec2<i32>(4)) >> vec2<u32>(3u);
             }
             let w = select(den - r.x, r.x, dx == 1) * select(den - r.y, r.y, dy == 1);
-            acc += w * hi_bilinear(big * s + off);
+            var c = hi_bilinear(big * s + off);
+            // Normal maps rotate with the texture, by each prediction's own J.
+            if ((params.coord_frac | u32(opaque)) != 0u && (params.map_kind | u32(opaque)) == 1u) {
+                c = rotate_normal(c, jac[idx]);
+            }
+            acc += w * c;
         }
     }
     let total = den * den;

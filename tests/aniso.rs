@@ -300,6 +300,7 @@ fn material_maps_follow_the_coordinates_and_rotate_normals() {
 
 #[test]
 fn magnification_matches_cpu() {
+    use texsyn::gpu::synth::ExtraMap;
     use texsyn::passes::plan::SynthPlan;
     // A 64x64 crop of the 128 px gravel analysed at 32x32, magnified 2x and 4x.
     let full = texsyn::image_io::load_exemplar(std::path::Path::new("assets/gravel.png")).unwrap();
@@ -345,6 +346,92 @@ fn magnification_matches_cpu() {
                 .collect();
             assert_eq!(got, cpu, "factor {factor}, field {field:?}");
         }
+        // Material sets magnified with the colours: a plain and a normal map
+        // (rotated by each prediction's J), in the same submission.
+        let map_a: Vec<[u8; 4]> = hi.iter().map(|c| [c[2], c[0], c[1], 255]).collect();
+        let map_n: Vec<[u8; 4]> = (0..128 * 128u32)
+            .map(|i| [(i % 128 * 2) as u8, (i / 128 * 2) as u8, 200, 255])
+            .collect();
+        let maps = [
+            ExtraMap {
+                pixels: map_a.clone(),
+                normal: false,
+            },
+            ExtraMap {
+                pixels: map_n.clone(),
+                normal: true,
+            },
+        ];
+        let params = SynthParams {
+            width: 18,
+            height: 12,
+            origin: [5, -2],
+            seed: 3,
+            field: Some(Field::Constant {
+                angle: 1.1,
+                scale: [1.0, 1.3],
+                shear: 0.1,
+            }),
+            ..Default::default()
+        };
+        let m = gpu
+            .synthesize_magnified_with_maps(ctx(), &params, &hi, 128, 128, factor, &maps)
+            .unwrap();
+        assert_eq!(
+            (m.width, m.height, m.maps.len()),
+            (18 * factor, 12 * factor, 2)
+        );
+        let alone = gpu
+            .synthesize_magnified(ctx(), &params, &hi, 128, 128, factor)
+            .unwrap()
+            .read_rgba8(ctx())
+            .unwrap();
+        assert_eq!(m.colors.concat(), alone, "colours as without maps");
+        let plan = SynthPlan::new(&a, &params).unwrap();
+        let schedule = plan.schedule(&a);
+        let mut coords = vec![[0i32; 2]; plan.coord_count as usize];
+        let jac = plan.jacobians();
+        texsyn::passes::run_cpu(&a, &schedule, &mut coords, &jac);
+        for (i, (src, normal)) in [(&map_a, false), (&map_n, true)].into_iter().enumerate() {
+            let p = texsyn::passes::common::PassParams {
+                magnify: factor,
+                hi_size: [128, 128],
+                map_kind: normal as u32,
+                ..schedule.last().unwrap().params
+            };
+            let cpu = texsyn::passes::magnify::run(&p, &coords, &jac, src);
+            assert_eq!(m.maps[i], cpu, "map {i}, factor {factor}");
+        }
+        // The normal map did rotate (x, y differ from the unrotated magnification).
+        let plain = texsyn::passes::magnify::run(
+            &texsyn::passes::common::PassParams {
+                magnify: factor,
+                hi_size: [128, 128],
+                ..schedule.last().unwrap().params
+            },
+            &coords,
+            &jac,
+            &map_n,
+        );
+        assert_ne!(m.maps[1], plain);
+        assert_eq!(m.synthesis.width, 18);
+        assert!(gpu
+            .synthesize_magnified_with_maps(
+                ctx(),
+                &params,
+                &hi,
+                128,
+                128,
+                factor,
+                &maps[..1]
+                    .iter()
+                    .map(|m| ExtraMap {
+                        pixels: m.pixels[..100].to_vec(),
+                        normal: false
+                    })
+                    .collect::<Vec<_>>()
+            )
+            .is_err());
         // Wrong sizes and factors are errors.
         let p = SynthParams {
             width: 8,

@@ -879,6 +879,31 @@ fn controls_end_to_end_and_their_bad_inputs() {
         ],
     );
     assert_eq!(png_size(&dir.path("m.png")), (40, 40));
+    // Magnification with material sets: the maps are full-resolution (the exemplar's
+    // size) and come out magnified, with the coordinates of the same synthesis.
+    ok(
+        &dir,
+        &[
+            "synth",
+            GRAVEL,
+            "-o",
+            "mm.png",
+            "--size",
+            "20",
+            "--magnify",
+            "2",
+            "--also",
+            "height.png=mh.png",
+            "--coords-out",
+            "mm.exr",
+        ],
+    );
+    assert_eq!(png_size(&dir.path("mm.png")), (40, 40));
+    assert_eq!(png_size(&dir.path("mh.png")), (40, 40));
+    let same = |a: &str, b: &str| {
+        std::fs::read(dir.path(a)).unwrap() == std::fs::read(dir.path(b)).unwrap()
+    };
+    assert!(same("mm.png", "m.png") && same("mm.exr", "m.exr"));
     // The coordinates of the magnified synthesis: one per pixel before magnification,
     // in the analysed (half-size) exemplar's pixels.
     let (w, h, c) = texsyn::image_io::load_coords_exr_f32(&dir.path("m.exr")).unwrap();

@@ -66,3 +66,33 @@ fn bilinear_taps(u: vec2<i32>) -> Taps {
     }
     return Taps(a, b, u & vec2<i32>((1 << COORD_FRAC) - 1));
 }
+
+// floor(sqrt(x)) for 0 <= x < 2^30, exact: float estimate, then one correction step.
+fn isqrt(x: i32) -> i32 {
+    var r = i32(sqrt(f32(x)));
+    r -= select(0, 1, r * r > x);
+    r += select(0, 1, (r + 1) * (r + 1) <= x);
+    return r;
+}
+
+// An RGBA8 tangent-space normal (x, y in the first two channels, 0..255) rotated with
+// the texture: by the rotation part of J^-1 (2x2 polar decomposition, integer
+// arithmetic; mirror: crate::passes::gather_map::rotate_normal).
+fn rotate_normal(v: vec4<i32>, j: vec4<i32>) -> vec4<i32> {
+    let n = 2 * v.xy - vec2<i32>(255);
+    var r: vec2<i32>;
+    if (j.x * j.w - j.y * j.z >= 0) {
+        // J's rotation part is [[a, -b], [b, a]] / L; J^-1's is its transpose.
+        let a = j.x + j.w;
+        let b = j.z - j.y;
+        let l = max(isqrt(a * a + b * b), 1);
+        r = vec2<i32>(a * n.x + b * n.y, a * n.y - b * n.x) / l;
+    } else {
+        // Reflection: [[a, b], [b, -a]] / L is its own inverse.
+        let a = j.x - j.w;
+        let b = j.z + j.y;
+        let l = max(isqrt(a * a + b * b), 1);
+        r = vec2<i32>(a * n.x + b * n.y, b * n.x - a * n.y) / l;
+    }
+    return vec4<i32>(clamp((r + vec2<i32>(256)) >> vec2<u32>(1u), vec2<i32>(0), vec2<i32>(255)), v.zw);
+}

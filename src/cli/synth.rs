@@ -84,7 +84,8 @@ pub struct SynthArgs {
     /// Magnification: analyse the exemplar downsampled F times, synthesize --size, and
     /// render the output F times larger (2, 4 or 8) with the full-resolution exemplar's
     /// colours. Needs an exemplar image (not an analysis file). With --coords-out the
-    /// coordinates (per pixel before magnification) are written too; not with --also
+    /// coordinates (per pixel before magnification) are written too; --also maps
+    /// (full-resolution, the exemplar's size) are magnified the same way
     #[arg(long, value_name = "F", value_parser = parse_magnify)]
     pub magnify: Option<u32>,
 
@@ -258,13 +259,15 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
     }
     // Magnification: analyse a downsampled copy, keep the full colours.
     let mut hi_res = None;
+    // The size extra maps must have: the exemplar's (before any downsampling).
+    let mut full_size = None;
+    if let Source::Image(ex) = &source {
+        full_size = Some((ex.width, ex.height));
+    }
     if let Some(f) = args.magnify {
         let (small, hi) = magnify_source(source, f)?;
         source = small;
         hi_res = Some(hi);
-        if !args.also.is_empty() {
-            return Err(fail("--magnify cannot be combined with --also (yet)"));
-        }
     }
 
     let t = Instant::now();
@@ -330,22 +333,33 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
     let upload_time = t.elapsed();
 
     // Material sets: every extra map is read (and checked) before any synthesis.
+    // With --magnify they are full-resolution, cropped as the exemplar was.
     let mut extra = Vec::with_capacity(args.also.len());
+    let (ew, eh) =
+        full_size.unwrap_or((synthesizer.analysis().width, synthesizer.analysis().height));
     for a in &args.also {
         let ex = texsyn::image_io::load_exemplar(&a.input)?;
-        if (ex.width, ex.height) != (synthesizer.analysis().width, synthesizer.analysis().height) {
+        if (ex.width, ex.height) != (ew, eh) {
             return Err(fail(format!(
-                "--also {}: {}x{} pixels, but the exemplar is {}x{}; extra maps must be aligned with it",
+                "--also {}: {}x{} pixels, but the exemplar is {ew}x{eh}; extra maps must be aligned with it",
                 a.input.display(),
                 ex.width,
                 ex.height,
-                synthesizer.analysis().width,
-                synthesizer.analysis().height
             )));
         }
+        let pixels = match &hi_res {
+            Some((_, hw, hh, _)) => (0..*hh as usize)
+                .flat_map(|y| {
+                    ex.colors[y * ew as usize..y * ew as usize + *hw as usize]
+                        .iter()
+                        .copied()
+                })
+                .collect(),
+            None => ex.colors,
+        };
         extra.push((
             texsyn::gpu::synth::ExtraMap {
-                pixels: ex.colors,
+                pixels,
                 normal: a.normal,
             },
             ex.channels,
@@ -353,7 +367,9 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
     }
 
     let timings;
-    if let Some((hi, hw, hh, f)) = &hi_res {
+    if let (Some((hi, hw, hh, f)), false) =
+        (&hi_res, args.coords_out.is_some() || !extra.is_empty())
+    {
         let t = Instant::now();
         let gpu = synthesizer
             .synthesize_magnified(&ctx, &params, hi, *hw, *hh, *f)
@@ -364,44 +380,38 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
         let rgba8 = gpu.read_rgba8(&ctx)?;
         let readback = t.elapsed();
         let t = Instant::now();
-        // The coordinates are those of the analysed (low-resolution) exemplar, one per
-        // output pixel before magnification: the same synthesis, read back.
-        if let Some(coords_path) = &args.coords_out {
-            let s = synthesizer
-                .synthesize_to_host(&ctx, &params)
-                .map_err(cli_hint)?;
-            texsyn::image_io::save_coords_exr_f32_atomic(
-                coords_path,
-                width,
-                height,
-                &s.coords_f32(),
-            )?;
-        }
-        if let Err(e) = texsyn::image_io::save_image_atomic(
-            &args.output,
-            gpu.width,
-            gpu.height,
-            channels,
-            &rgba8,
-        ) {
-            if let Some(c) = &args.coords_out {
-                let _ = std::fs::remove_file(c);
-            }
-            return Err(e.into());
-        }
+        texsyn::image_io::save_image_atomic(&args.output, gpu.width, gpu.height, channels, &rgba8)?;
         timings = Timings::Separate {
             synth,
             readback,
             write: t.elapsed(),
         };
     } else if args.coords_out.is_some() || !extra.is_empty() {
-        // Coordinates and maps only come back through `synthesize_with_maps`, which
-        // synthesizes and reads back in one go: report the two together.
+        // Coordinates and maps come back with the synthesis, in one go: report the
+        // two together. With --magnify the colours and maps are magnified, the
+        // coordinates are one per pixel before magnification (analysed exemplar).
         let t = Instant::now();
         let maps: Vec<_> = extra.iter().map(|(m, _)| m.clone()).collect();
-        let (s, map_pixels) = synthesizer
-            .synthesize_with_maps(&ctx, &params, &maps)
-            .map_err(cli_hint)?;
+        let (coords, out_w, out_h, colors, map_pixels) = match &hi_res {
+            Some((hi, hw, hh, f)) => {
+                let m = synthesizer
+                    .synthesize_magnified_with_maps(&ctx, &params, hi, *hw, *hh, *f, &maps)
+                    .map_err(cli_hint)?;
+                (
+                    m.synthesis.coords_f32(),
+                    m.width,
+                    m.height,
+                    m.colors,
+                    m.maps,
+                )
+            }
+            None => {
+                let (s, map_pixels) = synthesizer
+                    .synthesize_with_maps(&ctx, &params, &maps)
+                    .map_err(cli_hint)?;
+                (s.coords_f32(), width, height, s.colors, map_pixels)
+            }
+        };
         ctx.take_uncaptured_errors()?;
         let synth_readback = t.elapsed();
         let t = Instant::now();
@@ -409,21 +419,16 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
         let mut written: Vec<PathBuf> = Vec::new();
         let result = (|| -> CliResult<()> {
             if let Some(coords_path) = &args.coords_out {
-                texsyn::image_io::save_coords_exr_f32_atomic(
-                    coords_path,
-                    width,
-                    height,
-                    &s.coords_f32(),
-                )?;
+                texsyn::image_io::save_coords_exr_f32_atomic(coords_path, width, height, &coords)?;
                 written.push(coords_path.clone());
             }
             for (a, (pixels, (_, ch))) in args.also.iter().zip(map_pixels.iter().zip(&extra)) {
                 let bytes: Vec<u8> = pixels.iter().flatten().copied().collect();
-                texsyn::image_io::save_image_atomic(&a.output, width, height, *ch, &bytes)?;
+                texsyn::image_io::save_image_atomic(&a.output, out_w, out_h, *ch, &bytes)?;
                 written.push(a.output.clone());
             }
-            let rgba8: Vec<u8> = s.colors.iter().flatten().copied().collect();
-            texsyn::image_io::save_image_atomic(&args.output, width, height, channels, &rgba8)?;
+            let rgba8: Vec<u8> = colors.iter().flatten().copied().collect();
+            texsyn::image_io::save_image_atomic(&args.output, out_w, out_h, channels, &rgba8)?;
             Ok(())
         })();
         if let Err(e) = result {

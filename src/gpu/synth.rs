@@ -89,6 +89,23 @@ pub struct ExtraMap {
     pub normal: bool,
 }
 
+/// A magnified synthesis with its material sets, on the host
+/// ([`GpuSynthesizer::synthesize_magnified_with_maps`]).
+#[derive(Clone, Debug)]
+pub struct MagnifiedSynthesis {
+    /// Magnified size: `factor` times the synthesized window.
+    pub width: u32,
+    pub height: u32,
+    pub factor: u32,
+    /// Magnified colours from the high-resolution exemplar, RGBA8, `width x height`.
+    pub colors: Vec<[u8; 4]>,
+    /// Each extra map, magnified the same way, RGBA8, `width x height`.
+    pub maps: Vec<Vec<[u8; 4]>>,
+    /// The synthesis at its own resolution (coordinates in the analysed exemplar's
+    /// pixels, and its colours).
+    pub synthesis: Synthesis,
+}
+
 /// The coordinate pyramid, kept between calls of the same or smaller size. Sharing it
 /// is safe even for several syntheses recorded into one encoder: they run in order.
 struct Scratch {
@@ -698,15 +715,91 @@ impl GpuSynthesizer {
         params: &SynthParams,
         maps: &[ExtraMap],
     ) -> Result<(Synthesis, Vec<Vec<[u8; 4]>>)> {
+        let (s, _, m) = self.synthesize_maps_inner(ctx, params, maps, None)?;
+        Ok((s, m))
+    }
+
+    /// [`Self::synthesize_magnified`] with material sets, read back to the host in one
+    /// submission: the colours and every extra map rendered `factor` times larger from
+    /// their high-resolution versions (each `hi_width` x `hi_height`, `factor` times the
+    /// analysed exemplar; normal maps rotate with the field as in
+    /// [`Self::synthesize_with_maps`]), and the synthesis itself (coordinates and
+    /// colours at the synthesized resolution).
+    #[allow(clippy::too_many_arguments)]
+    pub fn synthesize_magnified_with_maps(
+        &self,
+        ctx: &GpuContext,
+        params: &SynthParams,
+        hi: &[[u8; 4]],
+        hi_width: u32,
+        hi_height: u32,
+        factor: u32,
+        maps: &[ExtraMap],
+    ) -> Result<MagnifiedSynthesis> {
+        self.check_magnify(hi, hi_width, hi_height, factor)?;
+        let (synthesis, colors, maps) =
+            self.synthesize_maps_inner(ctx, params, maps, Some((hi, hi_width, hi_height, factor)))?;
+        Ok(MagnifiedSynthesis {
+            width: params.width * factor,
+            height: params.height * factor,
+            factor,
+            colors: colors.unwrap_or_default(),
+            maps,
+            synthesis,
+        })
+    }
+
+    /// Checks a magnification request (factor, high-resolution size, output size).
+    fn check_magnify(
+        &self,
+        hi: &[[u8; 4]],
+        hi_width: u32,
+        hi_height: u32,
+        factor: u32,
+    ) -> Result<()> {
         let a = &self.analysis;
+        if ![2, 4, 8].contains(&factor) {
+            return Err(Error::InvalidParameter(format!(
+                "magnification {factor}: use 2, 4 or 8"
+            )));
+        }
+        if (hi_width, hi_height) != (a.width * factor, a.height * factor)
+            || hi.len() != hi_width as usize * hi_height as usize
+        {
+            return Err(Error::InvalidParameter(format!(
+                "the high-resolution exemplar is {hi_width}x{hi_height} ({} pixels given); \
+                 magnifying {factor}x needs {}x{}",
+                hi.len(),
+                a.width * factor,
+                a.height * factor
+            )));
+        }
+        Ok(())
+    }
+
+    /// Shared by the map syntheses: with `magnify`, the colours (from `hi`) and the maps
+    /// (high-resolution, `hi`'s size) are rendered magnified and the magnified colours
+    /// are returned too.
+    #[allow(clippy::type_complexity)]
+    fn synthesize_maps_inner(
+        &self,
+        ctx: &GpuContext,
+        params: &SynthParams,
+        maps: &[ExtraMap],
+        magnify: Option<(&[[u8; 4]], u32, u32, u32)>,
+    ) -> Result<(Synthesis, Option<Vec<[u8; 4]>>, Vec<Vec<[u8; 4]>>)> {
+        let a = &self.analysis;
+        let (map_w, map_h, f) = match magnify {
+            Some((_, hw, hh, f)) => (hw, hh, f),
+            None => (a.width, a.height, 1),
+        };
         for (i, m) in maps.iter().enumerate() {
-            if m.pixels.len() != a.width as usize * a.height as usize {
+            if m.pixels.len() != map_w as usize * map_h as usize {
                 return Err(Error::InvalidParameter(format!(
-                    "extra map {} has {} pixels; it must have the exemplar's size {}x{}",
+                    "extra map {} has {} pixels; it must have the {}exemplar's size {map_w}x{map_h}",
                     i + 1,
                     m.pixels.len(),
-                    a.width,
-                    a.height
+                    if f > 1 { "high-resolution " } else { "" },
                 )));
             }
         }
@@ -714,23 +807,42 @@ impl GpuSynthesizer {
         self.check_output(ctx, &plan)?;
         let schedule = plan.schedule(&self.analysis);
         let (w, h) = (params.width, params.height);
+        let (bw, bh) = (w * f, h * f);
+        if f > 1 {
+            let max_dim = ctx.limits().max_texture_dimension_2d;
+            if bw > max_dim || bh > max_dim {
+                return Err(too_large(
+                    "magnified output",
+                    bw,
+                    bh,
+                    format!("at most {max_dim} pixels a side"),
+                    "magnify less, or synthesize smaller windows and assemble them",
+                ));
+            }
+        }
         let texture = ctx.scoped(|| self.output_texture(ctx, w, h))?;
         let view = texture.create_view(&Default::default());
+        // Sources of the map passes: the high-resolution colours first when magnifying.
+        let sources: Vec<(&[[u8; 4]], bool)> = magnify
+            .map(|(hi, ..)| (hi, false))
+            .into_iter()
+            .chain(maps.iter().map(|m| (&m.pixels[..], m.normal)))
+            .collect();
         let (map_buffers, map_textures) = ctx.scoped(|| {
-            let buffers: Vec<wgpu::Buffer> = maps
+            let buffers: Vec<wgpu::Buffer> = sources
                 .iter()
-                .map(|m| {
+                .map(|(pixels, _)| {
                     ctx.device
                         .create_buffer_init(&wgpu::util::BufferInitDescriptor {
                             label: Some("texsyn extra map"),
-                            contents: bytemuck::cast_slice(&m.pixels),
+                            contents: bytemuck::cast_slice(pixels),
                             usage: wgpu::BufferUsages::STORAGE,
                         })
                 })
                 .collect::<Vec<_>>();
-            let textures: Vec<wgpu::Texture> = maps
+            let textures: Vec<wgpu::Texture> = sources
                 .iter()
-                .map(|_| self.output_texture(ctx, w, h))
+                .map(|_| self.output_texture(ctx, bw, bh))
                 .collect();
             (buffers, textures)
         })?;
@@ -738,15 +850,19 @@ impl GpuSynthesizer {
             .iter()
             .map(|t| t.create_view(&Default::default()))
             .collect();
-        let targets: Vec<MapTarget> = maps
+        let targets: Vec<MapTarget> = sources
             .iter()
             .enumerate()
-            .map(|(i, m)| MapTarget {
+            .map(|(i, (_, normal))| MapTarget {
                 colors: &map_buffers[i],
                 view: &map_views[i],
-                normal: m.normal,
-                magnify: 1,
-                hi_size: [0, 0],
+                normal: *normal,
+                magnify: f,
+                hi_size: if f > 1 {
+                    [map_w as i32, map_h as i32]
+                } else {
+                    [0, 0]
+                },
             })
             .collect();
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
@@ -754,12 +870,16 @@ impl GpuSynthesizer {
             .scoped(|| self.record(ctx, &mut encoder, &plan, &schedule, &view, false, &targets))?;
         let fin = plan.levels.last().unwrap();
         let fin_bytes = fin.size[0] as u64 * fin.size[1] as u64 * 8;
-        let row = (w as u64 * 4).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT as u64);
+        let pitch =
+            |w: u32| (w as u64 * 4).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT as u64);
+        let (row, big_row) = (pitch(w), pitch(bw));
         let image_bytes = row * h as u64;
+        let big_bytes = big_row * bh as u64;
         let copy_image = |encoder: &mut wgpu::CommandEncoder,
                           t: &wgpu::Texture,
                           rb: &wgpu::Buffer,
-                          offset: u64| {
+                          offset: u64,
+                          (w, h, row): (u32, u32, u64)| {
             encoder.copy_texture_to_buffer(
                 wgpu::TexelCopyTextureInfo {
                     texture: t,
@@ -787,11 +907,11 @@ impl GpuSynthesizer {
         let readback = ctx.scoped(|| {
             let rb = ctx.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("texsyn readback"),
-                size: maps_offset + image_bytes * maps.len() as u64,
+                size: maps_offset + big_bytes * sources.len() as u64,
                 usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             });
-            copy_image(&mut encoder, &texture, &rb, 0);
+            copy_image(&mut encoder, &texture, &rb, 0, (w, h, row));
             encoder.copy_buffer_to_buffer(
                 &coords,
                 fin.coord_base as u64 * 8,
@@ -800,13 +920,19 @@ impl GpuSynthesizer {
                 fin_bytes,
             );
             for (i, t) in map_textures.iter().enumerate() {
-                copy_image(&mut encoder, t, &rb, maps_offset + image_bytes * i as u64);
+                copy_image(
+                    &mut encoder,
+                    t,
+                    &rb,
+                    maps_offset + big_bytes * i as u64,
+                    (bw, bh, big_row),
+                );
             }
             ctx.queue.submit([encoder.finish()]);
             rb
         })?;
         let bytes = read_buffer(ctx, &readback)?;
-        let rows = |offset: usize| {
+        let rows = |offset: usize, w: u32, h: u32, row: u64| {
             let mut out = Vec::with_capacity((w * h) as usize);
             for y in 0..h as usize {
                 let r =
@@ -815,10 +941,18 @@ impl GpuSynthesizer {
             }
             out
         };
-        let colors = rows(0);
-        let map_pixels: Vec<Vec<[u8; 4]>> = (0..maps.len())
-            .map(|i| rows((maps_offset + image_bytes * i as u64) as usize))
+        let colors = rows(0, w, h, row);
+        let mut map_pixels: Vec<Vec<[u8; 4]>> = (0..sources.len())
+            .map(|i| {
+                rows(
+                    (maps_offset + big_bytes * i as u64) as usize,
+                    bw,
+                    bh,
+                    big_row,
+                )
+            })
             .collect();
+        let big_colors = magnify.map(|_| map_pixels.remove(0));
         let level_coords: &[[i32; 2]] =
             bytemuck::cast_slice(&bytes[image_bytes as usize..(image_bytes + fin_bytes) as usize]);
         let mut window = Vec::with_capacity((w * h) as usize);
@@ -839,6 +973,7 @@ impl GpuSynthesizer {
                     0
                 },
             },
+            big_colors,
             map_pixels,
         ))
     }
@@ -857,22 +992,7 @@ impl GpuSynthesizer {
         factor: u32,
     ) -> Result<GpuSynthesis> {
         let a = &self.analysis;
-        if ![2, 4, 8].contains(&factor) {
-            return Err(Error::InvalidParameter(format!(
-                "magnification {factor}: use 2, 4 or 8"
-            )));
-        }
-        if (hi_width, hi_height) != (a.width * factor, a.height * factor)
-            || hi.len() != hi_width as usize * hi_height as usize
-        {
-            return Err(Error::InvalidParameter(format!(
-                "the high-resolution exemplar is {hi_width}x{hi_height} ({} pixels given); \
-                 magnifying {factor}x needs {}x{}",
-                hi.len(),
-                a.width * factor,
-                a.height * factor
-            )));
-        }
+        self.check_magnify(hi, hi_width, hi_height, factor)?;
         let plan = SynthPlan::new(a, params)?;
         self.check_output(ctx, &plan)?;
         let (w, h) = (params.width * factor, params.height * factor);
