@@ -43,9 +43,9 @@ pub struct SynthArgs {
     pub seed: u32,
 
     /// Jitter randomness in [0, 2]: one value for every level, or R0,R1,... per level
-    /// (coarsest first, the last repeats). Default: 1 on the coarse levels, 0.5 on the
-    /// fourth-finest, 0 on the three finest (exemplars under 128 px: jitter reaches one
-    /// level further; under 80 px: every level but the finest at 1)
+    /// (coarsest first, the last repeats). Default: 1 on the coarse levels, 0.75 on the
+    /// fourth-finest, 0 on the three finest (exemplars under 128 px: 0.5 on the
+    /// third-finest, 0 below; under 80 px: every level but the finest at 1)
     #[arg(long, value_name = "R|R0,R1,...", value_parser = parse_randomness)]
     pub randomness: Option<Randomness>,
 
