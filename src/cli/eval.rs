@@ -105,6 +105,11 @@ pub fn run(ui: &Ui, args: EvalArgs) -> CliResult<()> {
     if let Some(flow) = &args.flow {
         return temporal(ui, &args, &exemplar, flow);
     }
+    // The energy map's path is checked before any work.
+    if let Some(path) = &args.energy_map {
+        super::check_output_dir(path)?;
+        super::synth::check_save_extension(path)?;
+    }
     let output = load_image(&args.image)?;
 
     let coords = match &args.coords {

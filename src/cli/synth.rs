@@ -530,7 +530,7 @@ enum Timings {
 
 /// Rejects an output extension the library cannot write, before any work (the library
 /// checks again when saving).
-fn check_save_extension(path: &Path) -> CliResult<()> {
+pub fn check_save_extension(path: &Path) -> CliResult<()> {
     use image::ImageFormat as F;
     let Some(ext) = path.extension() else {
         return Ok(());

@@ -736,7 +736,7 @@ impl GpuSynthesizer {
         factor: u32,
         maps: &[ExtraMap],
     ) -> Result<MagnifiedSynthesis> {
-        self.check_magnify(hi, hi_width, hi_height, factor)?;
+        self.check_magnify(ctx, params, (hi, hi_width, hi_height), factor)?;
         let (synthesis, colors, maps) =
             self.synthesize_maps_inner(ctx, params, maps, Some((hi, hi_width, hi_height, factor)))?;
         Ok(MagnifiedSynthesis {
@@ -749,12 +749,13 @@ impl GpuSynthesizer {
         })
     }
 
-    /// Checks a magnification request (factor, high-resolution size, output size).
+    /// Checks a magnification request (factor, high-resolution size, magnified output
+    /// size against the device).
     fn check_magnify(
         &self,
-        hi: &[[u8; 4]],
-        hi_width: u32,
-        hi_height: u32,
+        ctx: &GpuContext,
+        params: &SynthParams,
+        (hi, hi_width, hi_height): (&[[u8; 4]], u32, u32),
         factor: u32,
     ) -> Result<()> {
         let a = &self.analysis;
@@ -773,6 +774,17 @@ impl GpuSynthesizer {
                 a.width * factor,
                 a.height * factor
             )));
+        }
+        let (w, h) = (params.width * factor, params.height * factor);
+        let max_dim = ctx.limits().max_texture_dimension_2d;
+        if w > max_dim || h > max_dim {
+            return Err(too_large(
+                "magnified output",
+                w,
+                h,
+                format!("at most {max_dim} pixels a side"),
+                "magnify less, or synthesize smaller windows and assemble them",
+            ));
         }
         Ok(())
     }
@@ -808,18 +820,6 @@ impl GpuSynthesizer {
         let schedule = plan.schedule(&self.analysis);
         let (w, h) = (params.width, params.height);
         let (bw, bh) = (w * f, h * f);
-        if f > 1 {
-            let max_dim = ctx.limits().max_texture_dimension_2d;
-            if bw > max_dim || bh > max_dim {
-                return Err(too_large(
-                    "magnified output",
-                    bw,
-                    bh,
-                    format!("at most {max_dim} pixels a side"),
-                    "magnify less, or synthesize smaller windows and assemble them",
-                ));
-            }
-        }
         let texture = ctx.scoped(|| self.output_texture(ctx, w, h))?;
         let view = texture.create_view(&Default::default());
         // Sources of the map passes: the high-resolution colours first when magnifying.
@@ -992,20 +992,10 @@ impl GpuSynthesizer {
         factor: u32,
     ) -> Result<GpuSynthesis> {
         let a = &self.analysis;
-        self.check_magnify(hi, hi_width, hi_height, factor)?;
+        self.check_magnify(ctx, params, (hi, hi_width, hi_height), factor)?;
         let plan = SynthPlan::new(a, params)?;
         self.check_output(ctx, &plan)?;
         let (w, h) = (params.width * factor, params.height * factor);
-        let max_dim = ctx.limits().max_texture_dimension_2d;
-        if w > max_dim || h > max_dim {
-            return Err(too_large(
-                "magnified output",
-                w,
-                h,
-                format!("at most {max_dim} pixels a side"),
-                "magnify less, or synthesize smaller windows and assemble them",
-            ));
-        }
         let schedule = plan.schedule(a);
         ctx.scoped(|| {
             let scratch = self.output_texture(ctx, params.width, params.height);
