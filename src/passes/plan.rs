@@ -102,8 +102,9 @@ impl Default for SynthParams {
 /// 0.19-0.27 with the schedules below.
 /// - min side >= 128: 0 on the three finest levels, 0.75 on the fourth, 1 above (0.5 on
 ///   the fourth let the largest verbatim region reach 0.30-0.34 of a 128 px exemplar on
-///   2 of 5 seeds; 0.75 kept it at 0.15-0.28 for +0-3% texture energy, where jitter one
-///   level further down costs +17-24%);
+///   2 of 5 seeds; 0.75 kept it at 0.15-0.28 for +0-4% texture energy (pink marble,
+///   energy x 1e3, mean of 5 seeds: 0.177 -> 0.183), where jitter one level further
+///   down costs +17-24%);
 /// - 80..128: 0 on the two finest, 0.5 on the third, 1 above;
 /// - under 80: 0 on the finest, 1 above.
 pub fn default_randomness(level: u32, finest: u32, exemplar_min_side: u32) -> f32 {
