@@ -1,5 +1,5 @@
 // Advection: quantizes a caller's velocity field (vec2<f32> per output pixel, pixels
-// per unit time) times the time step to 1/16 pixel per frame (mirror:
+// per unit time) times the time step to 1/1024 pixel per frame (mirror:
 // src/gpu/advect.rs quantize_velocity). Non-finite values become 0 and speeds are
 // clamped to +-64 pixels per frame, per component.
 
@@ -28,5 +28,5 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (finite(v.x) && finite(v.y)) {
         w = clamp(v * vp.dt, vec2<f32>(-64.0), vec2<f32>(64.0));
     }
-    output[i] = vec2<i32>(round(w * 16.0));
+    output[i] = vec2<i32>(round(w * 1024.0));
 }

@@ -49,7 +49,8 @@ struct Params {
     steps: u32,
     // Anisometric gather: nearest exemplar texel instead of bilinear (advection).
     nearest: u32,
-    _pad7: u32,
+    // Advection: this frame's rounding offset for J V (src/passes/advect.rs).
+    dither: u32,
     _pad8: u32,
     _pad9: u32,
 }

@@ -61,7 +61,9 @@ pub struct AdvectArgs {
     #[arg(long, default_value_t = AdvectOptions::default().levels)]
     pub levels: usize,
 
-    /// Distortion threshold |J_obs - J|_F beyond which a pixel is re-synthesized
+    /// Distortion threshold |J_obs - J|_F beyond which a pixel is re-synthesized (steps
+    /// off by a whole pixel on both sides are patch seams, not distortion, so thresholds
+    /// of about 1 and more re-synthesize almost nothing)
     #[arg(long, default_value_t = AdvectOptions::default().threshold)]
     pub threshold: f32,
 

@@ -30,7 +30,9 @@ pub struct AdvectOptions {
     /// the first frame's synthesis.
     pub levels: usize,
     /// Distortion threshold `c` on `|J_obs - J|_F` (Jacobian units): pixels beyond it
-    /// are upsampled again from the coarser level.
+    /// are upsampled again from the coarser level. A step off by a whole pixel on both
+    /// sides is a patch seam and does not count, so `c` of about 1 or more flags
+    /// almost nothing.
     pub threshold: f32,
     /// Correction passes per advected level and frame (the advected coordinates are
     /// already nearly right: one pass keeps the cost at a fraction of a synthesis).

@@ -3,20 +3,38 @@
 //! coordinates are advected without resampling, `S[p] = S'[p - k] - J(p) (V(p) - k)`
 //! with `k` the velocity at the window's centre rounded to whole pixels of the level
 //! (one drift for all pixels, so neighbours stay coherent), so the texture moves with the
-//! flow (a uniform flow of whole pixels translates it exactly, seams included); where the advected coordinates no
-//! longer follow the desired Jacobian (`|J_obs - J|_F > c`, divergent or shearing flows
-//! stretch them) the pixel is upsampled again from the coarser level; then the usual
-//! correction passes run.
+//! flow (a uniform flow of whole pixels translates it exactly, seams included); where the
+//! advected coordinates no longer follow the desired Jacobian (`|J_obs - J|_F > c`,
+//! divergent or shearing flows stretch them; steps off by a whole pixel on both sides
+//! are seams, not distortion) the pixel is upsampled again from the coarser level; then
+//! the usual correction passes run.
 
 use super::common::{fit_coord, region_index, scaled_jd, PassParams};
 use super::fill::in_chart;
 
-/// Fractional bits of velocities (1/16 output pixel per frame).
-pub const VELOCITY_FRAC: u32 = 4;
-/// Largest speed, output pixels per frame (keeps `J V` within i32).
+/// Fractional bits of velocities (1/1024 output pixel per frame). Fine, because a
+/// smooth flow's quantization error is the same every frame and adds up: at 1/16 pixel,
+/// a vortex's velocities came in bands a few pixels wide whose edges tore the texture
+/// by a whole pixel every 16 frames.
+pub const VELOCITY_FRAC: u32 = 10;
+/// Largest speed, output pixels per frame (keeps `J V` within i32: |J| <= 8 in 1/1024,
+/// a residual of at most 128 pixels in 1/1024).
 pub const MAX_SPEED: f32 = 64.0;
+/// Bits dropped from `J V` (1/2^(JAC_FRAC + VELOCITY_FRAC)) to reach coordinates
+/// (1/2^COORD_FRAC).
+const JV_SHIFT: u32 = 10 + VELOCITY_FRAC - super::common::COORD_FRAC;
 
-/// Velocity (1/16 px) at the finest pixel under level pixel `abs` (absolute).
+/// The rounding offset of `J V` at `frame` (0 .. 2^JV_SHIFT): the frame index with its
+/// bits reversed, a low-discrepancy sequence. Rounding the same fraction down and up in
+/// this proportion makes the error of a pixel's displacement stay within a few 1/256
+/// exemplar pixels however many frames add up (always rounding to nearest accumulates
+/// it, differently for neighbours: at 1/256 a vortex would tear after ~100 frames). The
+/// same for every pixel, so uniform flows stay exactly coherent.
+pub fn dither(frame: u64) -> u32 {
+    (frame as u32).reverse_bits() >> (32 - JV_SHIFT)
+}
+
+/// Velocity (1/1024 px) at the finest pixel under level pixel `abs` (absolute).
 pub fn velocity_at(p: &PassParams, velocity: &[[i32; 2]], abs: [i32; 2]) -> [i32; 2] {
     let half = (1i32 << p.steps) >> 1;
     let f = |a: i32, o: i32, n: i32| ((a << p.steps) + half - o).clamp(0, n - 1);
@@ -33,24 +51,24 @@ pub fn copy(p: &PassParams, coords: &mut [[i32; 2]]) {
 }
 
 pub fn advect(p: &PassParams, coords: &mut [[i32; 2]], jac: &[[i32; 4]], velocity: &[[i32; 2]]) {
-    let unit = 16i32 << p.steps;
+    let unit = 1i32 << (VELOCITY_FRAC + p.steps);
     for y in 0..p.size[1] {
         for x in 0..p.size[0] {
             let i = p.coord_base as usize + (y * p.size[0] + x) as usize;
             let vq = velocity_at(p, velocity, [p.origin[0] + x, p.origin[1] + y]);
             let ws = p.window_size;
             let vc = velocity[((ws[1] / 2) * ws[0] + ws[0] / 2) as usize];
-            let k = vc.map(|c| (c + (unit >> 1)) >> (4 + p.steps));
+            let k = vc.map(|c| (c + (unit >> 1)) >> (VELOCITY_FRAC + p.steps));
             let v = [vq[0] - k[0] * unit, vq[1] - k[1] * unit];
             let sx = (x - k[0]).clamp(0, p.size[0] - 1);
             let sy = (y - k[1]).clamp(0, p.size[1] - 1);
             let prev = coords[p.flag_base as usize + (sy * p.size[0] + sx) as usize];
             let j = jac[i];
-            let jv = [
-                (j[0] * v[0] + j[1] * v[1] + 8) >> 4,
-                (j[2] * v[0] + j[3] * v[1] + 8) >> 4,
+            let d = p.dither as i32;
+            let o = [
+                (j[0] * v[0] + j[1] * v[1] + d) >> JV_SHIFT,
+                (j[2] * v[0] + j[3] * v[1] + d) >> JV_SHIFT,
             ];
-            let o = [(jv[0] + 2) >> 2, (jv[1] + 2) >> 2];
             coords[i] = fit_coord([prev[0] - o[0], prev[1] - o[1]], p);
         }
     }
@@ -92,7 +110,14 @@ pub fn distortion(p: &PassParams, coords: &mut [[i32; 2]], jac: &[[i32; 4]], sur
                 let b = at(-e[0], -e[1]);
                 let fwd = [f[0] - s[0] - ex[0], f[1] - s[1] - ex[1]];
                 let bwd = [s[0] - b[0] - ex[0], s[1] - b[1] - ex[1]];
-                step_err(p, fwd).min(step_err(p, bwd))
+                // Off by a whole step on both sides: a strip between two seams, not
+                // flow distortion (see distortion.wgsl).
+                let err = step_err(p, fwd).min(step_err(p, bwd));
+                if err > seam_err(p.spacing) {
+                    0
+                } else {
+                    err
+                }
             };
             let err = axis([1, 0]) + axis([0, 1]);
             flags.push((err > p.distortion_max) as i32);
@@ -103,8 +128,101 @@ pub fn distortion(p: &PassParams, coords: &mut [[i32; 2]], jac: &[[i32; 4]], sur
     }
 }
 
+/// Squared step error of a whole pixel step at spacing `h`, `(h 256)^2`: beyond it an
+/// axis is a seam on both sides and does not count as distortion.
+pub fn seam_err(h: i32) -> u32 {
+    // Capped (no overflow): step errors stay below 2^30 anyway.
+    let h = h.min(128);
+    ((h * h) as u32) << 16
+}
+
 /// `distortion_max` for threshold `c` (Jacobian units) at spacing `h`.
 pub fn distortion_max(c: f32, h: i32) -> u32 {
     let v = (c as f64 * h as f64 * 256.0).powi(2);
     v.min(i32::MAX as f64) as u32
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn flags(coords: &mut Vec<[i32; 2]>, c: f32) -> Vec<i32> {
+        let p = PassParams {
+            ex_size: [4096, 4096],
+            size: [8, 8],
+            spacing: 1,
+            flag_base: 64,
+            distortion_max: distortion_max(c, 1),
+            ..Default::default()
+        };
+        let jac = vec![[1024, 0, 0, 1024]; 64];
+        coords.resize(128, [0, 0]);
+        distortion(&p, coords, &jac, &[]);
+        coords[64..].iter().map(|f| f[0]).collect()
+    }
+
+    #[test]
+    fn rounding_errors_do_not_add_up_over_frames() {
+        // A shear flow, v_y = 0.0123 x pixels per frame, for 300 frames along a row: each
+        // pixel must move by the exact sum within a few 1/256, and neighbours stay
+        // smooth (always rounding to nearest drifts by up to 300/512 pixel, in steps).
+        let n = 64;
+        let p = PassParams {
+            ex_size: [4096, 4096],
+            size: [n, 1],
+            window_size: [n, 1],
+            tileable: 1,
+            coord_frac: 8,
+            flag_base: n as u32,
+            ..Default::default()
+        };
+        let jac = vec![[1024, 0, 0, 1024]; n as usize];
+        let speed = |x: i32| 0.0123 * x as f64;
+        let velocity: Vec<[i32; 2]> = (0..n)
+            .map(|x| [0, (speed(x) * (1 << VELOCITY_FRAC) as f64).round() as i32])
+            .collect();
+        let start = |x: i32| [(1000 + x) << 8, 2000 << 8];
+        let mut coords: Vec<[i32; 2]> = (0..2 * n).map(start).collect();
+        let frames = 300;
+        for frame in 0..frames {
+            let p = PassParams {
+                dither: dither(frame),
+                ..p
+            };
+            copy(&p, &mut coords);
+            advect(&p, &mut coords, &jac, &velocity);
+        }
+        for x in 0..n {
+            // Exact for the quantized velocity, in 1/256 exemplar pixel.
+            let exact = velocity[x as usize][1] as f64 * frames as f64 / 4.0;
+            let moved = (start(x)[1] - coords[x as usize][1]) as f64;
+            assert!(
+                (moved - exact).abs() <= 3.0,
+                "x {x}: moved {moved}, exact {exact}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_strip_between_two_seams_is_not_distortion() {
+        // Identity coordinates, but column 4 comes from elsewhere in the exemplar: both
+        // of its x steps are seams.
+        let mut coords: Vec<[i32; 2]> = (0..64)
+            .map(|i| {
+                let (x, y) = (i % 8, i / 8);
+                let jump = if x == 4 { 40 } else { 0 };
+                [(x + jump) << 8, y << 8]
+            })
+            .collect();
+        assert!(flags(&mut coords, 0.5).iter().all(|&f| f == 0));
+    }
+
+    #[test]
+    fn stretched_coordinates_are_flagged() {
+        // 1.6 exemplar pixels per output pixel along x against J = I: 0.6 > c = 0.5.
+        let mut coords: Vec<[i32; 2]> = (0..64).map(|i| [(i % 8) * 410, (i / 8) << 8]).collect();
+        assert!(flags(&mut coords.clone(), 0.5).iter().all(|&f| f == 1));
+        // Below the threshold (0.6 < 0.7): nothing.
+        assert!(flags(&mut coords, 0.7).iter().all(|&f| f == 0));
+    }
 }

@@ -84,7 +84,9 @@ pub struct PassParams {
     /// Anisometric gather: 1 reads the exemplar texel nearest to the coordinate instead
     /// of interpolating (advection: sub-pixel motion must not blur the texture).
     pub nearest: u32,
-    pub _pad: [u32; 3],
+    /// Advection: the frame's rounding offset for `J V` (see `advect.rs`).
+    pub dither: u32,
+    pub _pad: [u32; 2],
 }
 
 /// Dynamic uniform offsets must be multiples of this (the WebGPU default limit).

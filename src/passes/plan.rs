@@ -401,7 +401,8 @@ impl SynthPlan {
             distortion_max: 0,
             steps: (self.levels.len() - 1 - level) as u32,
             nearest: 0,
-            _pad: [0; 3],
+            dither: 0,
+            _pad: [0; 2],
         }
     }
 }
@@ -561,7 +562,10 @@ impl SynthPlan {
             out.push(Dispatch {
                 kind: PassKind::Advect,
                 level,
-                params: adv,
+                params: PassParams {
+                    dither: super::advect::dither(frame),
+                    ..adv
+                },
             });
             if level > 0 {
                 out.push(Dispatch {
