@@ -31,7 +31,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let ws = params.window_size;
     let vc = velocity[u32((ws.y / 2) * ws.x + ws.x / 2)];
     let k = (vc + vec2<i32>(unit >> 1u)) >> vec2<u32>(10u + params.steps);
-    let v = vq - k * unit;
+    // Clamped to 128 pixels per component (only reached on coarse levels at near the
+    // largest speeds): keeps J V within i32.
+    let v = clamp(vq - k * unit, vec2<i32>(-(128 << 10u)), vec2<i32>(128 << 10u));
     let src = clamp(q - k, vec2<i32>(0), params.size - vec2<i32>(1));
     let prev = coords[params.flag_base + u32(src.y * params.size.x + src.x)];
     let j = jac[i];

@@ -17,9 +17,13 @@ use super::fill::in_chart;
 /// a vortex's velocities came in bands a few pixels wide whose edges tore the texture
 /// by a whole pixel every 16 frames.
 pub const VELOCITY_FRAC: u32 = 10;
-/// Largest speed, output pixels per frame (keeps `J V` within i32: |J| <= 8 in 1/1024,
-/// a residual of at most 128 pixels in 1/1024).
+/// Largest speed, output pixels per frame.
 pub const MAX_SPEED: f32 = 64.0;
+/// Largest residual `V - k` per component (1/1024 pixel): 128 pixels, so that `J V`
+/// (|J| <= 8 in 1/1024) stays within i32. The residual is at most `MAX_SPEED` plus half
+/// a level pixel, so this only bites on levels 64 and more pixels coarser than the
+/// finest at speeds near the largest.
+const MAX_RESIDUAL: i32 = 128 << VELOCITY_FRAC;
 /// Bits dropped from `J V` (1/2^(JAC_FRAC + VELOCITY_FRAC)) to reach coordinates
 /// (1/2^COORD_FRAC).
 const JV_SHIFT: u32 = 10 + VELOCITY_FRAC - super::common::COORD_FRAC;
@@ -59,7 +63,8 @@ pub fn advect(p: &PassParams, coords: &mut [[i32; 2]], jac: &[[i32; 4]], velocit
             let ws = p.window_size;
             let vc = velocity[((ws[1] / 2) * ws[0] + ws[0] / 2) as usize];
             let k = vc.map(|c| (c + (unit >> 1)) >> (VELOCITY_FRAC + p.steps));
-            let v = [vq[0] - k[0] * unit, vq[1] - k[1] * unit];
+            let v = [vq[0] - k[0] * unit, vq[1] - k[1] * unit]
+                .map(|c| c.clamp(-MAX_RESIDUAL, MAX_RESIDUAL));
             let sx = (x - k[0]).clamp(0, p.size[0] - 1);
             let sy = (y - k[1]).clamp(0, p.size[1] - 1);
             let prev = coords[p.flag_base as usize + (sy * p.size[0] + sx) as usize];
