@@ -12,8 +12,8 @@
 use super::common::{fit_coord, region_index, scaled_jd, PassParams};
 use super::fill::in_chart;
 
-/// Fractional bits of velocities (1/1024 output pixel per frame). Fine, because a
-/// smooth flow's quantization error is the same every frame and adds up: at 1/16 pixel,
+/// Fractional bits of velocities (1/1024 output pixel per frame). The precision matters
+/// because a smooth flow's quantization error is the same every frame and adds up: at 1/16 pixel,
 /// a vortex's velocities came in bands a few pixels wide whose edges tore the texture
 /// by a whole pixel every 16 frames.
 pub const VELOCITY_FRAC: u32 = 10;
@@ -31,8 +31,8 @@ const JV_SHIFT: u32 = 10 + VELOCITY_FRAC - super::common::COORD_FRAC;
 /// The rounding offset of `J V` at `frame` (0 .. 2^JV_SHIFT): the frame index with its
 /// bits reversed, a low-discrepancy sequence. Rounding the same fraction down and up in
 /// this proportion makes the error of a pixel's displacement stay within a few 1/256
-/// exemplar pixels however many frames add up (always rounding to nearest accumulates
-/// it, differently for neighbours: at 1/256 a vortex would tear after ~100 frames). The
+/// exemplar pixels however many frames add up (rounding to nearest repeats the same
+/// error, up to half a 1/256 step, every frame, and differently for neighbours). The
 /// same for every pixel, so uniform flows stay exactly coherent.
 pub fn dither(frame: u64) -> u32 {
     (frame as u32).reverse_bits() >> (32 - JV_SHIFT)
