@@ -209,6 +209,45 @@ mod tests {
     }
 
     #[test]
+    fn largest_speeds_and_scales_do_not_overflow() {
+        // A level 128 pixels coarser than the finest, the centre moving at +64 pixels
+        // per frame and this pixel at -64 (residual -192, clamped to -128) per
+        // component, J = 8 x a 45-degree rotation: J V must not wrap around.
+        let p = PassParams {
+            ex_size: [1 << 14, 1 << 14],
+            size: [1, 1],
+            window_size: [3, 1],
+            steps: 7,
+            tileable: 1,
+            coord_frac: 8,
+            flag_base: 1,
+            ..Default::default()
+        };
+        let c = 5793; // 8 cos 45 degrees, in 1/1024
+        let jac = [[c, -c, c, c]];
+        let fast = 64 << VELOCITY_FRAC;
+        let velocity = [[-fast, -fast], [fast, fast], [-fast, -fast]];
+        let start = [8000 << 8, 8000 << 8];
+        let mut coords = vec![start, start];
+        advect(&p, &mut coords, &jac, &velocity);
+        // k = 1 level pixel = 128 pixels: S[p] = S'[p - k] - J (V - k), V - k clamped.
+        let v = -128.0 * 1024.0;
+        let expected = [
+            start[0] as f64 - 0.0,
+            start[1] as f64 - 2.0 * c as f64 * v / 4096.0,
+        ];
+        let got = coords[0];
+        assert!(
+            (got[0] as f64 - expected[0]).abs() <= 1.0,
+            "{got:?} vs {expected:?}"
+        );
+        assert!(
+            (got[1] as f64 - expected[1]).abs() <= 1.0,
+            "{got:?} vs {expected:?}"
+        );
+    }
+
+    #[test]
     fn a_strip_between_two_seams_is_not_distortion() {
         // Identity coordinates, but column 4 comes from elsewhere in the exemplar: both
         // of its x steps are seams.
