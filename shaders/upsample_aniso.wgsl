@@ -1,5 +1,6 @@
 // Anisometric upsample (mirror: src/passes/upsample_aniso.rs):
-// S_l[p] = S_{l-1}[floor(p/2)] + h_l J(p) (p mod 2), fixed point, absolute positions p.
+// S_l[p] = S_{l-1}[floor(p/2)] + h_l J(p) (p mod 2), fixed point, absolute positions p;
+// odd children average the predictions of their 2 or 4 parents when those agree.
 #include "shared/common.wgsl"
 #include "shared/aniso.wgsl"
 
@@ -17,11 +18,53 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if ((params.flag_base | u32(opaque)) != 0u && coords[params.flag_base + t].x == 0) {
         return;
     }
-    var c = vec2<i32>(0);
+    var c = fit_coord(vec2<i32>(0));
     if ((params.parent_size.x | opaque) > 0) {
-        let pp = clamp((abs_p >> vec2<u32>(1u)) - params.parent_origin, vec2<i32>(0), params.parent_size - vec2<i32>(1));
-        let parent = coords[params.parent_coord_base + u32(pp.y * params.parent_size.x + pp.x)];
-        c = parent + scaled_jd(params.spacing, jac[i], abs_p & vec2<i32>(1));
+        let odd = abs_p & vec2<i32>(1);
+        let j = jac[i];
+        let base = fit_coord(parent_at(abs_p, vec2<i32>(0)) + scaled_jd(params.spacing, j, odd));
+        c = base;
+        // An odd child lies between two (or four) parents: average their predictions
+        // when they agree within a pixel, so a sub-pixel misfit between parents (a
+        // non-integrable field J) is spread over the children instead of becoming a
+        // step. Predictions that differ by a pixel or more (a patch seam, and every
+        // disagreement when J = I) keep the nearest parent's: isometric results stay
+        // exact.
+        if (any(odd != vec2<i32>(0))) {
+            var sum = vec2<i32>(0);
+            var agree = true;
+            for (var k = 1; k < 4; k++) {
+                let d = vec2<i32>(k & 1, k >> 1u);
+                if (any(d > odd)) {
+                    continue;
+                }
+                let pred = fit_coord(parent_at(abs_p, d) + scaled_jd(params.spacing, j, odd - 2 * d));
+                let e = coord_delta(pred - base);
+                agree = agree && all(abs(e) < vec2<i32>(3 << (COORD_FRAC - 2u)));
+                sum += e;
+            }
+            if (agree) {
+                let shift = u32(odd.x + odd.y);
+                c = fit_coord(base + ((sum + vec2<i32>(i32(1u << shift) >> 1u)) >> vec2<u32>(shift)));
+            }
+        }
     }
-    coords[i] = fit_coord(c);
+    coords[i] = c;
+}
+
+// The parent at block offset d (0 or 1 per axis) from the child's own.
+fn parent_at(abs_p: vec2<i32>, d: vec2<i32>) -> vec2<i32> {
+    let pp = clamp((abs_p >> vec2<u32>(1u)) + d - params.parent_origin, vec2<i32>(0), params.parent_size - vec2<i32>(1));
+    return coords[params.parent_coord_base + u32(pp.y * params.parent_size.x + pp.x)];
+}
+
+// A difference of two fitted coordinates, the shortest way around a tileable exemplar.
+fn coord_delta(d: vec2<i32>) -> vec2<i32> {
+    var e = d;
+    if ((params.tileable | opaque) != 0) {
+        let n = params.ex_size << vec2<u32>(COORD_FRAC);
+        e -= select(vec2<i32>(0), n, e > (n >> vec2<u32>(1u)));
+        e += select(vec2<i32>(0), n, e < -(n >> vec2<u32>(1u)));
+    }
+    return e;
 }

@@ -78,8 +78,9 @@ fn perspective_and_swirl_are_followed() {
         scale: 1.5,
     };
     let r = fidelity(&perspective, 160);
-    // Measured 0.85 (clamped to 8x minification near the top).
-    assert!(r.within_non_seam > 0.8, "{r:?}");
+    // Measured 0.92 (clamped to 8x minification near the top); 0.85 before odd children
+    // averaged their parents' predictions in the upsampling.
+    assert!(r.within_non_seam > 0.88, "{r:?}");
     assert!(r.seam_fraction < 0.4, "{r:?}");
     let swirl = Field::Swirl {
         center: [80.0, 80.0],
@@ -88,10 +89,11 @@ fn perspective_and_swirl_are_followed() {
         scale: 1.0,
     };
     // A quarter turn over 80 px is not integrable (no coordinate map has exactly this
-    // Jacobian), so patches bend away from it: measured 0.74 of non-seam pixels within
-    // 15% here (0.79 on 512x512 outputs of the default swirl).
+    // Jacobian), so patches bend away from it: measured 0.81 of non-seam pixels within
+    // 15% here (0.74 before the averaging upsampling; 0.84-0.87 on 512x512 outputs of
+    // the default swirl).
     let r = fidelity(&swirl, 160);
-    assert!(r.within_non_seam > 0.65, "{r:?}");
+    assert!(r.within_non_seam > 0.77, "{r:?}");
     assert!(r.median_error_non_seam < 0.1, "{r:?}");
 }
 
