@@ -39,9 +39,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
                     continue;
                 }
                 let pred = fit_coord(parent_at(abs_p, d) + scaled_jd(params.spacing, j, odd - 2 * d));
-                let e = coord_delta(pred - base);
-                agree = agree && all(abs(e) < vec2<i32>(3 << (COORD_FRAC - 2u)));
-                sum += e;
+                agree = agree && same_patch(pred, base);
+                sum += coord_delta(pred - base);
             }
             if (agree) {
                 let shift = u32(odd.x + odd.y);
@@ -58,13 +57,3 @@ fn parent_at(abs_p: vec2<i32>, d: vec2<i32>) -> vec2<i32> {
     return coords[params.parent_coord_base + u32(pp.y * params.parent_size.x + pp.x)];
 }
 
-// A difference of two fitted coordinates, the shortest way around a tileable exemplar.
-fn coord_delta(d: vec2<i32>) -> vec2<i32> {
-    var e = d;
-    if ((params.tileable | opaque) != 0) {
-        let n = params.ex_size << vec2<u32>(COORD_FRAC);
-        e -= select(vec2<i32>(0), n, e > (n >> vec2<u32>(1u)));
-        e += select(vec2<i32>(0), n, e < -(n >> vec2<u32>(1u)));
-    }
-    return e;
-}

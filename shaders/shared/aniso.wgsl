@@ -21,6 +21,23 @@ fn phi_inv(j: vec4<i32>, d: vec2<i32>) -> vec2<i32> {
     return select(vec2<i32>(0), sign(v), 3 * sq >= sq.yx);
 }
 
+// A difference of two fitted coordinates, the shortest way around a tileable exemplar.
+fn coord_delta(d: vec2<i32>) -> vec2<i32> {
+    var e = d;
+    if ((params.tileable | opaque) != 0) {
+        let n = params.ex_size << vec2<u32>(COORD_FRAC);
+        e -= select(vec2<i32>(0), n, e > (n >> vec2<u32>(1u)));
+        e += select(vec2<i32>(0), n, e < -(n >> vec2<u32>(1u)));
+    }
+    return e;
+}
+
+// Whether two fitted coordinates are less than 3/4 pixel apart on both axes: the same
+// patch, up to the sub-pixel misfit a field that is not a gradient leaves.
+fn same_patch(a: vec2<i32>, b: vec2<i32>) -> bool {
+    return all(abs(coord_delta(a - b)) < vec2<i32>(3 << (COORD_FRAC - 2u)));
+}
+
 fn read_coord_fx(c: vec2<i32>) -> vec2<i32> {
     let n = params.ex_size << vec2<u32>(COORD_FRAC);
     if ((params.tileable | opaque) != 0) {

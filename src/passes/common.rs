@@ -253,6 +253,32 @@ pub fn phi_inv(j: [i32; 4], d: [i32; 2]) -> [i32; 2] {
     ]
 }
 
+/// A difference of two fitted fixed-point coordinates, the shortest way around a
+/// tileable exemplar.
+pub fn coord_delta(d: [i32; 2], p: &PassParams) -> [i32; 2] {
+    if p.tileable == 0 {
+        return d;
+    }
+    let wrap = |e: i32, n: i32| {
+        let n = n << COORD_FRAC;
+        if e > n >> 1 {
+            e - n
+        } else if e < -(n >> 1) {
+            e + n
+        } else {
+            e
+        }
+    };
+    [wrap(d[0], p.ex_size[0]), wrap(d[1], p.ex_size[1])]
+}
+
+/// Whether two fitted coordinates are less than 3/4 pixel apart on both axes: the same
+/// patch, up to the sub-pixel misfit a field that is not a gradient leaves.
+pub fn same_patch(a: [i32; 2], b: [i32; 2], p: &PassParams) -> bool {
+    let e = coord_delta([a[0] - b[0], a[1] - b[1]], p);
+    e[0].abs() < 3 << (COORD_FRAC - 2) && e[1].abs() < 3 << (COORD_FRAC - 2)
+}
+
 /// Full wrap (tileable) or clamp to the image (non-tileable) of a fixed-point read
 /// position. The anisometric passes cannot use [`wrap_near`]: `h J d` is not bounded by
 /// the exemplar size.

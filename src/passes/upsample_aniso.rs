@@ -2,7 +2,7 @@
 //! `S_l[p] = S_{l-1}[floor(p/2)] + h_l J(p) (p mod 2)` in fixed point (1/256 exemplar
 //! pixel), absolute positions `p`. With `J = I` it is `upsample` times 256.
 
-use super::common::{fit_coord, scaled_jd, PassParams, COORD_FRAC};
+use super::common::{coord_delta, fit_coord, same_patch, scaled_jd, PassParams};
 
 pub fn upsample_pixel(
     p: &PassParams,
@@ -40,13 +40,10 @@ pub fn upsample_pixel(
             continue;
         }
         let pred = predict(d);
-        let e = [
-            coord_delta(pred[0] - base[0], p.ex_size[0], p),
-            coord_delta(pred[1] - base[1], p.ex_size[1], p),
-        ];
-        if e[0].abs() >= 3 << (COORD_FRAC - 2) || e[1].abs() >= 3 << (COORD_FRAC - 2) {
+        if !same_patch(pred, base, p) {
             return base;
         }
+        let e = coord_delta([pred[0] - base[0], pred[1] - base[1]], p);
         sum[0] += e[0];
         sum[1] += e[1];
     }
@@ -59,22 +56,6 @@ pub fn upsample_pixel(
         ],
         p,
     )
-}
-
-/// A difference of two fitted coordinates, the shortest way around a tileable exemplar
-/// of `n` pixels along the axis.
-fn coord_delta(d: i32, n: i32, p: &PassParams) -> i32 {
-    if p.tileable == 0 {
-        return d;
-    }
-    let n = n << COORD_FRAC;
-    if d > n >> 1 {
-        d - n
-    } else if d < -(n >> 1) {
-        d + n
-    } else {
-        d
-    }
 }
 
 pub fn run(p: &PassParams, coords: &mut [[i32; 2]], jac: &[[i32; 4]]) {
@@ -95,6 +76,7 @@ pub fn run(p: &PassParams, coords: &mut [[i32; 2]], jac: &[[i32; 4]]) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::passes::common::COORD_FRAC;
 
     /// One row of 2 parents (spacing 2) upsampled to 4 children at spacing 1, J = I.
     fn row(parents: [[i32; 2]; 2], tileable: i32) -> Vec<[i32; 2]> {
