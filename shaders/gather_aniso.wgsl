@@ -1,5 +1,8 @@
 // Anisometric gather (mirror: src/passes/gather_aniso.rs): the exemplar colour
 // bilinearly interpolated at the finest level's continuous coordinate, integer weights.
+// Seam blending as in gather.wgsl: a 4-neighbour n whose prediction S[n] - h J (n - p)
+// is 3/4 pixel or more from the pixel's coordinate (a patch seam, not the sub-pixel
+// misfit of a varying field) adds its predicted colour at half weight.
 #include "shared/common.wgsl"
 #include "shared/aniso.wgsl"
 
@@ -8,15 +11,9 @@ fn color_u(c: vec2<i32>) -> vec4<i32> {
     return vec4<i32>(vec4<u32>(w, w >> 8u, w >> 16u, w >> 24u) & vec4<u32>(255u));
 }
 
-@compute @workgroup_size(8, 8, 1)
-fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
-    opaque = i32(gid.z);
-    let p = vec2<i32>(gid.xy);
-    if (any(p >= (params.window_size | vec2<i32>(opaque)))) {
-        return;
-    }
-    let q = p + params.window_offset;
-    var c = coords[params.coord_base + u32(q.y * params.size.x + q.x)];
+// RGBA (0..255) at a fixed-point position: bilinear, or the nearest texel (advection).
+fn color_at(u: vec2<i32>) -> vec4<i32> {
+    var c = u;
     if ((params.nearest | u32(opaque)) != 0u) {
         c = ((c + vec2<i32>(128)) >> vec2<u32>(8u)) << vec2<u32>(8u);
     }
@@ -27,6 +24,35 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let g = vec2<i32>(256) - f;
     let v = g.x * g.y * color_u(i0) + f.x * g.y * color_u(vec2<i32>(i1.x, i0.y))
         + g.x * f.y * color_u(vec2<i32>(i0.x, i1.y)) + f.x * f.y * color_u(i1);
-    let rgba = vec4<f32>((v + vec4<i32>(32768)) >> vec4<u32>(16u)) / 255.0;
-    textureStore(out_color, p, rgba);
+    return (v + vec4<i32>(32768)) >> vec4<u32>(16u);
+}
+
+@compute @workgroup_size(8, 8, 1)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    opaque = i32(gid.z);
+    let p = vec2<i32>(gid.xy);
+    if (any(p >= (params.window_size | vec2<i32>(opaque)))) {
+        return;
+    }
+    let q = p + params.window_offset;
+    let i = params.coord_base + u32(q.y * params.size.x + q.x);
+    let c = coords[i];
+    var v = color_at(c);
+    if ((params.seam_blend | u32(opaque)) != 0u) {
+        let j = jac[i];
+        var sum = 2 * v;
+        var weight = 2;
+        for (var k = 0; k < 4; k++) {
+            // (1, 0), (-1, 0), (0, 1), (0, -1)
+            let d = select(vec2<i32>(1 - 2 * (k & 1), 0), vec2<i32>(0, 1 - 2 * (k & 1)), k >= 2);
+            let pred = coords[region_index(q + d)] - scaled_jd(params.spacing, j, d);
+            if (!same_patch(pred, c)) {
+                sum += color_at(pred);
+                weight += 1;
+            }
+        }
+        // Rounded to nearest; weight is 2..6.
+        v = (sum + vec4<i32>(weight / 2)) / vec4<i32>(weight);
+    }
+    textureStore(out_color, p, vec4<f32>(v) / 255.0);
 }

@@ -174,6 +174,12 @@ impl SessionBuilder {
         self
     }
 
+    /// Blend colours across patch seams (default `true`; see [`SynthParams::seam_blend`]).
+    pub fn seam_blend(mut self, on: bool) -> Self {
+        self.params.seam_blend = on;
+        self
+    }
+
     /// Output one period of a seamlessly tiling texture.
     pub fn tileable_output(mut self, on: bool) -> Self {
         self.params.tileable_output = on;

@@ -845,6 +845,8 @@ fn feature_mask_carries_structure_that_colour_lacks() {
                 .analysis_options(opts.clone())
                 .size(160, 160)
                 .seed(seed)
+                // The output must be the mask gathered through the coordinates.
+                .seam_blend(false)
                 .build()
                 .unwrap();
             let tex = session.run().unwrap();

@@ -51,7 +51,8 @@ struct Params {
     nearest: u32,
     // Advection: this frame's rounding offset for J V (src/passes/advect.rs).
     dither: u32,
-    _pad8: u32,
+    // Gathers: blend the neighbours' predicted colours across patch seams.
+    seam_blend: u32,
     _pad9: u32,
 }
 

@@ -106,6 +106,12 @@ pub struct SynthArgs {
     #[arg(long, conflicts_with = "window")]
     pub tileable_output: bool,
 
+    /// Copy the exemplar colour at every coordinate, seams included. By default a pixel
+    /// on a patch seam blends in the colours its 4 neighbours predict there (coherent
+    /// pixels are exact copies either way)
+    #[arg(long)]
+    pub no_seam_blend: bool,
+
     /// Origin of the output window in the infinite texture
     #[arg(long, value_name = "X,Y", default_value = "0,0", value_parser = parse_window, allow_hyphen_values = true)]
     pub window: [i32; 2],
@@ -324,6 +330,7 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
         },
         tileable_output: args.tileable_output,
         surface: None,
+        seam_blend: !args.no_seam_blend,
     };
     // Validate the parameters before uploading anything.
     texsyn::passes::SynthPlan::new(&analysis, &params)?;

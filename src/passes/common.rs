@@ -86,7 +86,10 @@ pub struct PassParams {
     pub nearest: u32,
     /// Advection: the frame's rounding offset for `J V` (see `advect.rs`).
     pub dither: u32,
-    pub _pad: [u32; 2],
+    /// Gathers: 1 blends the colours that the 4 neighbours predict across patch seams
+    /// (see `gather.rs`), 0 copies the exemplar at the coordinate.
+    pub seam_blend: u32,
+    pub _pad: u32,
 }
 
 /// Dynamic uniform offsets must be multiples of this (the WebGPU default limit).

@@ -2,7 +2,7 @@
 //! interpolated at the finest level's continuous coordinate (integer weights in
 //! 1/65536, rounded), for the pixels of the output window.
 
-use super::common::{bilinear_rgba, PassParams};
+use super::common::{bilinear_rgba, region_index, same_patch, scaled_jd, PassParams};
 
 /// Bilinear RGBA8 colour at a fixed-point exemplar position.
 pub fn color_at(p: &PassParams, colors: &[[u8; 4]], c: [i32; 2]) -> [u8; 4] {
@@ -14,11 +14,44 @@ pub fn color_at(p: &PassParams, colors: &[[u8; 4]], c: [i32; 2]) -> [u8; 4] {
     bilinear_rgba(colors, p.ex_size, p.tileable != 0, c).map(|v| v as u8)
 }
 
-/// Returns the window's fixed-point coordinates and RGBA8 colours, row-major.
+/// Returns the window's fixed-point coordinates and RGBA8 colours, row-major. With
+/// `seam_blend`, as in [`super::gather::run`]: a 4-neighbour `n` whose prediction
+/// `S[n] - h J (n - p)` is 3/4 pixel or more from the pixel's coordinate (a patch seam,
+/// not the sub-pixel misfit of a varying field) adds its predicted colour at half weight.
 pub fn run(
     p: &PassParams,
     coords: &[[i32; 2]],
+    jac: &[[i32; 4]],
     colors: &[[u8; 4]],
 ) -> (Vec<[i32; 2]>, Vec<[u8; 4]>) {
-    super::gather::gather_window(p, coords, |c| color_at(p, colors, c))
+    let mut out = super::gather::gather_window(p, coords, |c| color_at(p, colors, c));
+    if p.seam_blend == 0 {
+        return out;
+    }
+    let base = p.coord_base as usize;
+    let mut i = 0;
+    for y in 0..p.window_size[1] {
+        for x in 0..p.window_size[0] {
+            let q = [x + p.window_offset[0], y + p.window_offset[1]];
+            let c = out.0[i];
+            let j = jac[base + region_index(q, p)];
+            let mut sum = color_at(p, colors, c).map(|v| 2 * v as i32);
+            let mut weight = 2i32;
+            for d in [[1, 0], [-1, 0], [0, 1], [0, -1]] {
+                let s = coords[base + region_index([q[0] + d[0], q[1] + d[1]], p)];
+                let o = scaled_jd(p.spacing, j, d);
+                let pred = [s[0] - o[0], s[1] - o[1]];
+                if !same_patch(pred, c, p) {
+                    let v = color_at(p, colors, pred);
+                    for k in 0..4 {
+                        sum[k] += v[k] as i32;
+                    }
+                    weight += 1;
+                }
+            }
+            out.1[i] = sum.map(|v| ((v + weight / 2) / weight) as u8);
+            i += 1;
+        }
+    }
+    out
 }

@@ -138,7 +138,9 @@ pub fn run_cpu_frame(
                 None
             }
             PassKind::Gather => Some(gather::run(&d.params, coords, &analysis.colors)),
-            PassKind::GatherAniso => Some(gather_aniso::run(&d.params, coords, &analysis.colors)),
+            PassKind::GatherAniso => {
+                Some(gather_aniso::run(&d.params, coords, jac, &analysis.colors))
+            }
         };
         if let Some((c, col)) = gathered {
             out = Some(Synthesis {

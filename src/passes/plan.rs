@@ -51,6 +51,12 @@ pub struct SynthParams {
     /// through the indirection maps after every pass. Excludes `field`, windows and
     /// `tileable_output`.
     pub surface: Option<Arc<AtlasDomain>>,
+    /// Output colours: blend, at patch seams, the colours that the 4 neighbours'
+    /// coordinates predict (`true`, default), or copy the exemplar at each coordinate
+    /// (`false`). Measured to lower the full-resolution texture energy by 10-18%;
+    /// coherent pixels are copies either way (see `passes/gather.rs`). Material maps
+    /// (`--also`), magnified output and advection frames are not blended.
+    pub seam_blend: bool,
 }
 
 impl SynthParams {
@@ -88,6 +94,7 @@ impl Default for SynthParams {
             field: None,
             tileable_output: false,
             surface: None,
+            seam_blend: true,
         }
     }
 }
@@ -402,7 +409,8 @@ impl SynthPlan {
             steps: (self.levels.len() - 1 - level) as u32,
             nearest: 0,
             dither: 0,
-            _pad: [0; 2],
+            seam_blend: self.params.seam_blend as u32,
+            _pad: 0,
         }
     }
 }
