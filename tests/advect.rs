@@ -408,6 +408,50 @@ fn advect_cli() {
         stderr.contains("cost per frame") && stderr.contains("warped by the flow"),
         "{stderr}"
     );
+    // eval --flow compares consecutive frames: frames 0, 2, 4 are refused.
+    let o = run(&[
+        "eval",
+        "assets/gravel.png",
+        frames.to_str().unwrap(),
+        "--flow",
+        "vortex:0.5,0.5,0.02",
+    ]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && stderr.contains("not consecutive"),
+        "{stderr}"
+    );
+    // A second run into the same folder replaces the frames: none of the first run's is
+    // left over, and no staging folder stays behind.
+    let o = run(&[
+        "advect",
+        "assets/gravel.png",
+        "--flow",
+        "uniform:1,0",
+        "--frames",
+        "1",
+        "--size",
+        "32",
+        "-q",
+        "-o",
+        frames.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let mut names: Vec<String> = std::fs::read_dir(&frames)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(names, ["frame_00000.png", "frame_00001.png"]);
+    assert_eq!(png_dims(&frames.join("frame_00001.png")), (32, 32));
+    let o = run(&[
+        "eval",
+        "assets/gravel.png",
+        frames.to_str().unwrap(),
+        "--flow",
+        "uniform:1,0",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     // An animated PNG: every frame in one file.
     let apng = dir.path("anim.png");
     assert!(run(&[
@@ -476,7 +520,20 @@ fn advect_cli() {
         assert!(!o.status.success(), "{args:?} succeeded");
         assert!(stderr.contains(expect), "{args:?}: {stderr}");
         assert!(!stderr.contains("panicked"), "{stderr}");
+        assert!(!out.exists(), "{args:?} left {} behind", out.display());
     }
+    // Nothing but what the successful runs wrote: no hidden staging folders.
+    let mut left: Vec<String> = std::fs::read_dir(dir.path(""))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    left.sort();
+    assert_eq!(left, ["anim.png", "bunny.gif", "frames"]);
+}
+
+fn png_dims(path: &std::path::Path) -> (u32, u32) {
+    let img = image::open(path).unwrap();
+    (img.width(), img.height())
 }
 
 /// Advection over a surface atlas: velocities from 3D vectors projected into the atlas,

@@ -481,6 +481,39 @@ fn bad_inputs_fail_cleanly() {
         "does not exist",
     );
 
+    fails(
+        &dir,
+        &[
+            "synth",
+            GRAVEL,
+            "-o",
+            "out.png",
+            "--size",
+            "16",
+            "--also",
+            &format!("{GRAVEL}=./out.png"),
+        ],
+        1,
+        "two outputs",
+    );
+
+    // A folder that exists but cannot be written to (/proc refuses new files, even to root).
+    if Path::new("/proc").is_dir() {
+        fails(
+            &dir,
+            &[
+                "synth",
+                GRAVEL,
+                "-o",
+                "/proc/texsyn-out.png",
+                "--size",
+                "16",
+            ],
+            1,
+            "cannot write",
+        );
+    }
+
     // Larger than the device allows.
     synth(
         GRAVEL,

@@ -1,5 +1,5 @@
 //! `texsyn advect`: texture advection frame by frame along a flow, on an image or on a
-//! mesh's atlas; frames to a folder (or an animated GIF), temporal figures on stderr.
+//! mesh's atlas; frames to a folder or an animation (APNG or GIF), temporal figures on stderr.
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -24,7 +24,7 @@ use super::{fail, fmt_duration, parse_size, CliResult, TileArgs, Ui};
                   the coordinates of the finest levels move with the flow without resampling, \
                   pixels the flow distorts too much are re-synthesized from the coarser level, \
                   and a correction pass keeps the texture intact. Writes the frames to a folder \
-                  (frame_00000.png, ...) or an animated GIF (OUT.gif), and prints per-frame cost \
+                  (frame_00000.png, ...) or an animation (OUT.png: animated PNG; OUT.gif), and prints per-frame cost \
                   and temporal-coherence figures. With --mesh the texture moves over the \
                   surface's atlas (velocities from a 3D flow projected into it) and each frame is \
                   rendered headlessly."
@@ -42,7 +42,7 @@ pub struct AdvectArgs {
     pub frames: u32,
 
     /// Output: a folder for PNG frames, or an animation: OUT.png (animated PNG) or OUT.gif
-    #[arg(short, long, value_name = "DIR|OUT.gif")]
+    #[arg(short, long, value_name = "DIR|OUT.png|OUT.gif")]
     pub output: PathBuf,
 
     /// Output size (2D)
@@ -80,6 +80,7 @@ pub struct AdvectArgs {
     #[arg(long, value_name = "SPEC", value_parser = parse_field, long_help = FIELD_HELP)]
     pub field: Option<FieldSpec>,
 
+    /// Random seed of the first frame's synthesis (as for synth)
     #[arg(long, default_value_t = SynthParams::default().seed)]
     pub seed: u32,
 
@@ -92,7 +93,7 @@ pub struct AdvectArgs {
     pub mesh: Option<PathBuf>,
 
     /// Atlas size for --mesh
-    #[arg(long, default_value_t = 512)]
+    #[arg(long, default_value_t = 512, requires = "mesh")]
     pub atlas_size: u32,
 
     #[command(flatten)]
@@ -101,6 +102,86 @@ pub struct AdvectArgs {
 
 fn parse_flow(s: &str) -> Result<Flow, String> {
     s.parse()
+}
+
+/// Frames of a folder output go to a hidden staging folder next to it first; they
+/// replace the folder's frames only once every frame was written. A failed run leaves
+/// nothing behind (the staging folder is removed when dropped uncommitted), and a
+/// shorter re-run leaves no stale frames of an earlier one.
+struct Staging {
+    dir: PathBuf,
+    target: PathBuf,
+    committed: bool,
+}
+
+fn is_frame_file(name: &str) -> bool {
+    name.len() == 15
+        && name.starts_with("frame_")
+        && name.ends_with(".png")
+        && name[6..11].bytes().all(|b| b.is_ascii_digit())
+}
+
+impl Staging {
+    fn new(target: &Path) -> CliResult<Self> {
+        if target.exists() && !target.is_dir() {
+            return Err(fail(format!(
+                "{} exists and is not a folder: give a folder for the frames, a .png or a .gif",
+                target.display()
+            )));
+        }
+        let name = target
+            .file_name()
+            .ok_or_else(|| fail(format!("{}: not a folder name", target.display())))?;
+        let parent = match target.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        let dir = parent.join(format!(
+            ".{}.partial-{}",
+            name.to_string_lossy(),
+            std::process::id()
+        ));
+        std::fs::create_dir_all(&dir).map_err(|e| {
+            fail(format!(
+                "cannot create the folder {}: {e}",
+                target.display()
+            ))
+        })?;
+        Ok(Self {
+            dir,
+            target: target.to_path_buf(),
+            committed: false,
+        })
+    }
+
+    fn commit(mut self) -> CliResult<()> {
+        let err = |e: std::io::Error| fail(format!("cannot write {}: {e}", self.target.display()));
+        if self.target.is_dir() {
+            for entry in std::fs::read_dir(&self.target).map_err(err)? {
+                let entry = entry.map_err(err)?;
+                if is_frame_file(&entry.file_name().to_string_lossy()) {
+                    std::fs::remove_file(entry.path()).map_err(err)?;
+                }
+            }
+            for entry in std::fs::read_dir(&self.dir).map_err(err)? {
+                let entry = entry.map_err(err)?;
+                std::fs::rename(entry.path(), self.target.join(entry.file_name())).map_err(err)?;
+            }
+            std::fs::remove_dir(&self.dir).map_err(err)?;
+        } else {
+            std::fs::rename(&self.dir, &self.target).map_err(err)?;
+        }
+        self.committed = true;
+        Ok(())
+    }
+}
+
+impl Drop for Staging {
+    fn drop(&mut self) {
+        if !self.committed {
+            let _ = std::fs::remove_dir_all(&self.dir);
+        }
+    }
 }
 
 enum Sink {
@@ -121,6 +202,7 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
         .extension()
         .and_then(|e| e.to_str())
         .map(|e| e.to_ascii_lowercase());
+    let mut staging = None;
     let mut sink = if ext.as_deref() == Some("gif") {
         super::check_output_dir(&args.output)?;
         Sink::Gif(args.output.clone(), Vec::new())
@@ -128,24 +210,23 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
         super::check_output_dir(&args.output)?;
         Sink::Apng(args.output.clone(), Vec::new())
     } else {
-        if args.output.exists() && !args.output.is_dir() {
-            return Err(fail(format!(
-                "{} exists and is not a folder: give a folder for the frames, or a .gif",
-                args.output.display()
-            )));
-        }
-        std::fs::create_dir_all(&args.output).map_err(|e| {
-            fail(format!(
-                "cannot create the folder {}: {e}",
-                args.output.display()
-            ))
-        })?;
-        Sink::Folder(args.output.clone())
+        let s = Staging::new(&args.output)?;
+        let dir = s.dir.clone();
+        staging = Some(s);
+        Sink::Folder(dir)
     };
     args.flow.validate()?;
     let source = read_source(&args.exemplar, None, args.tile.get())?;
     let ctx = GpuContext::headless()?;
     ui.info(format!("adapter: {}", ctx.describe()));
+    if args.mesh.is_none() {
+        super::check_output_size_hint(
+            &ctx,
+            args.size[0],
+            args.size[1],
+            "advection keeps each whole frame in one synthesis: give a smaller --size",
+        )?;
+    }
     let analysis = match source {
         Source::Analysis(a) => a,
         Source::Image(ex) => {
@@ -219,6 +300,9 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
     let mut frames: Vec<FloatImage> = Vec::new();
     let mut displacements: Vec<Vec<[f32; 2]>> = vec![Vec::new()];
     let mut costs = Vec::new();
+    // Frames written to the output (every --every-th), and their size (renders with
+    // --mesh).
+    let mut written = (0u32, [w, h]);
     let mut emit = |adv: &Advection, index: u32, frames: &mut Vec<FloatImage>| -> CliResult<()> {
         let rgba = adv.read_rgba8(&ctx)?;
         frames.push(FloatImage::new(
@@ -250,6 +334,7 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
             }
             None => image::RgbaImage::from_raw(w, h, rgba).ok_or_else(|| fail("internal: size"))?,
         };
+        written = (written.0 + 1, [image.width(), image.height()]);
         match &mut sink {
             Sink::Folder(dir) => {
                 let path = dir.join(format!("frame_{index:05}.png"));
@@ -282,6 +367,9 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
         Sink::Apng(path, list) => write_apng(path, list)?,
         Sink::Folder(_) => {}
     }
+    if let Some(s) = staging.take() {
+        s.commit()?;
+    }
     let frame_time = median(&mut costs);
     let every = if args.energy_every == 0 {
         usize::MAX
@@ -295,9 +383,11 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
         every,
     )?;
     ui.info(format!(
-        "output: {} ({} frames of {w}x{h})",
+        "output: {} ({} frames of {}x{})",
         args.output.display(),
-        args.frames + 1
+        written.0,
+        written.1[0],
+        written.1[1]
     ));
     ui.info(format!(
         "cost per frame (GPU, synchronized, median): {} = {:.0}% of a whole synthesis ({})",

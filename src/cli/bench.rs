@@ -62,8 +62,8 @@ pub struct BenchArgs {
     #[arg(long, value_name = "MODE", default_value = "mixed", value_parser = super::parse_distance)]
     pub distance: texsyn::DistanceMode,
 
-    /// Anisometric synthesis along a field (same SPEC as `texsyn synth --field`; maps
-    /// from files are not accepted here since every size is benchmarked)
+    /// Anisometric synthesis along a field (same SPEC as `texsyn synth --field`; a map
+    /// from a file must have every benchmarked size, so give a single --sizes with it)
     #[arg(long, value_name = "SPEC", value_parser = super::field::parse_field)]
     pub field: Option<super::field::FieldSpec>,
 

@@ -231,6 +231,25 @@ fn temporal(
             args.image.display()
         )));
     }
+    // The flow is applied frame by frame: a gap (advect --every K) would compare frames
+    // K steps apart as if they were 1.
+    let index = |p: &PathBuf| -> Option<u64> {
+        let n = p.file_name()?.to_str()?;
+        n.strip_prefix("frame_")?.strip_suffix(".png")?.parse().ok()
+    };
+    for pair in paths.windows(2) {
+        match (index(&pair[0]), index(&pair[1])) {
+            (Some(a), Some(b)) if b == a + 1 => {}
+            _ => {
+                return Err(fail(format!(
+                    "{}: the frames are not consecutive ({} then {}); eval --flow needs every frame (advect --every 1)",
+                    args.image.display(),
+                    pair[0].file_name().unwrap_or_default().to_string_lossy(),
+                    pair[1].file_name().unwrap_or_default().to_string_lossy()
+                )))
+            }
+        }
+    }
     let frames: Vec<FloatImage> = paths
         .iter()
         .map(|p| load_image(p))
@@ -240,6 +259,8 @@ fn temporal(
         return Err(fail("the frames do not all have the same size"));
     }
     let dt = args.dt;
+    // A field of another size than the frames is an error, not a silently ignored flow.
+    flow.sample(w, h, 0.0)?;
     let report = quality::temporal_report(
         &FloatImage::from_exemplar(exemplar),
         &frames,

@@ -365,6 +365,43 @@ pub fn check_output_dir(path: &Path) -> CliResult<()> {
             )
         }));
     }
+    // Probe that the directory takes new files (read-only mounts, /proc, permissions):
+    // failing now costs nothing, failing after the work would leave other outputs half
+    // written.
+    let probe = dir.join(format!(".texsyn-probe-{}", std::process::id()));
+    match std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(&probe)
+    {
+        Ok(_) => {
+            let _ = std::fs::remove_file(&probe);
+        }
+        Err(e) => {
+            return Err(fail(format!(
+                "cannot write {}: {e} (directory {})",
+                path.display(),
+                dir.display()
+            )))
+        }
+    }
+    Ok(())
+}
+
+/// Refuses two outputs of one command that name the same file (the later write would
+/// silently replace the earlier one).
+pub fn check_distinct_outputs(paths: &[&Path]) -> CliResult<()> {
+    let key = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
+    for (i, a) in paths.iter().enumerate() {
+        for b in &paths[..i] {
+            if key(a) == key(b) {
+                return Err(fail(format!(
+                    "{} is given for two outputs; give each output its own file",
+                    a.display()
+                )));
+            }
+        }
+    }
     Ok(())
 }
 
@@ -415,6 +452,16 @@ pub fn check_output_size(
     width: u32,
     height: u32,
 ) -> texsyn::Result<()> {
+    check_output_size_hint(ctx, width, height, WINDOW_HINT)
+}
+
+/// [`check_output_size`] with the advice to give when the size is too large.
+pub fn check_output_size_hint(
+    ctx: &texsyn::gpu::GpuContext,
+    width: u32,
+    height: u32,
+    hint: &'static str,
+) -> texsyn::Result<()> {
     let limits = ctx.limits();
     let max_dim = limits.max_texture_dimension_2d;
     let too_large = |limit: String| texsyn::Error::TooLarge {
@@ -422,7 +469,7 @@ pub fn check_output_size(
         width,
         height,
         limit,
-        hint: WINDOW_HINT,
+        hint,
     };
     if width > max_dim || height > max_dim {
         return Err(too_large(format!("at most {max_dim} pixels a side")));

@@ -67,9 +67,10 @@ pub struct SurfaceArgs {
     #[arg(long, value_name = "PNG")]
     pub render: Option<PathBuf>,
 
-    /// Views in the render, and each view's size in pixels
+    /// Views in the render (orbiting the mesh, side by side)
     #[arg(long, default_value_t = 4)]
     pub views: u32,
+    /// Size of each rendered view in pixels
     #[arg(long, default_value_t = 384)]
     pub view_size: u32,
 
@@ -98,12 +99,16 @@ pub struct SurfaceArgs {
     #[arg(long, value_name = "IMAGE")]
     pub occlusion_map: Option<PathBuf>,
 
+    /// Random seed (as for synth)
     #[arg(long, default_value_t = SynthParams::default().seed)]
     pub seed: u32,
+    /// Jitter randomness, one value or one per level, coarsest first (as for synth)
     #[arg(long, value_name = "R|R0,R1,...", value_parser = parse_randomness)]
     pub randomness: Option<Randomness>,
-    #[arg(long, default_value_t = SynthParams::default().passes)]
+    /// Correction passes on every level but the finest (as for synth)
+    #[arg(long, default_value_t = SynthParams::default().passes, value_parser = clap::value_parser!(u32).range(0..=16))]
     pub passes: u32,
+    /// Bias towards coherent candidates in [0, 4] (as for synth)
     #[arg(long, value_name = "C", default_value_t = SynthParams::default().coherence, value_parser = parse_coherence)]
     pub coherence: f32,
 
@@ -124,6 +129,16 @@ pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
     for p in [&args.render, &args.atlas_out].into_iter().flatten() {
         check_output_dir(p)?;
     }
+    let outputs: Vec<&std::path::Path> = [
+        Some(&args.output),
+        args.render.as_ref(),
+        args.atlas_out.as_ref(),
+    ]
+    .into_iter()
+    .flatten()
+    .map(|p| p.as_path())
+    .collect();
+    super::check_distinct_outputs(&outputs)?;
     if args.output.extension().and_then(|e| e.to_str()) != Some("glb") {
         return Err(fail(format!(
             "{}: the output is a binary glTF; name it *.glb",
@@ -334,6 +349,7 @@ pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
     let occlusion = next_map(material_maps[2].is_some(), |p| [p[0], p[0], p[0], 255])?;
 
     let t = Instant::now();
+    let mut render_image = None;
     if let Some(r) = &args.render {
         let ropts = RenderOptions {
             view_size: args.view_size,
@@ -369,27 +385,47 @@ pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
             },
         };
         let img = render::render_views(&ctx, &prepared.atlas.mesh, &texture, &ropts)?;
-        texsyn::image_io::save_image_atomic(r, img.width(), img.height(), 4, img.as_raw())?;
-        ui.info(format!("render: {}", r.display()));
+        render_image = Some((r, img));
     }
     let render_time = t.elapsed();
+    // All or nothing: a failed write removes what this run already wrote.
+    let mut written: Vec<&std::path::Path> = Vec::new();
+    let result = (|| -> CliResult<()> {
+        if let Some((r, img)) = &render_image {
+            texsyn::image_io::save_image_atomic(r, img.width(), img.height(), 4, img.as_raw())?;
+            written.push(r.as_path());
+        }
+        if let Some(a) = &args.atlas_out {
+            texsyn::image_io::save_image_atomic(
+                a,
+                base_color.width(),
+                base_color.height(),
+                4,
+                base_color.as_raw(),
+            )?;
+            written.push(a.as_path());
+        }
+        let material = MaterialImages {
+            base_color,
+            normal,
+            metallic_roughness,
+            occlusion,
+        };
+        gltf_io::write_glb(&args.output, &prepared.atlas.mesh, &material)?;
+        Ok(())
+    })();
+    if let Err(e) = result {
+        for p in &written {
+            let _ = std::fs::remove_file(p);
+        }
+        return Err(e);
+    }
+    if let Some((r, _)) = &render_image {
+        ui.info(format!("render: {}", r.display()));
+    }
     if let Some(a) = &args.atlas_out {
-        texsyn::image_io::save_image_atomic(
-            a,
-            base_color.width(),
-            base_color.height(),
-            4,
-            base_color.as_raw(),
-        )?;
         ui.info(format!("atlas image: {}", a.display()));
     }
-    let material = MaterialImages {
-        base_color,
-        normal,
-        metallic_roughness,
-        occlusion,
-    };
-    gltf_io::write_glb(&args.output, &prepared.atlas.mesh, &material)?;
     ui.info(format!("output: {}", args.output.display()));
     let _ = (ex_w, ex_h);
     ui.info(format!(

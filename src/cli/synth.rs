@@ -240,7 +240,13 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
     if let Some(c) = &args.coords_out {
         check_output_dir(c)?;
     }
+    let mut outputs: Vec<&std::path::Path> = vec![&args.output];
+    outputs.extend(args.coords_out.as_deref());
+    outputs.extend(args.also.iter().map(|a| a.output.as_path()));
+    super::check_distinct_outputs(&outputs)?;
     let [width, height] = args.size;
+    // What the output file holds (larger than the synthesis with --magnify).
+    let mut out_size = (width, height);
 
     // Read the input first (cheap), then check the size against the device, and only
     // then analyse (expensive).
@@ -420,6 +426,7 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
             }
         };
         ctx.take_uncaptured_errors()?;
+        out_size = (out_w, out_h);
         let synth_readback = t.elapsed();
         let t = Instant::now();
         // All or nothing: any failed write removes what this run already wrote.
@@ -466,9 +473,16 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
     }
 
     let px = width as f64 * height as f64;
+    let magnified = if out_size != (width, height) {
+        format!(", magnified from {width}x{height}")
+    } else {
+        String::new()
+    };
     ui.info(format!(
-        "output: {} ({width}x{height}, seed {}, window {},{})",
+        "output: {} ({}x{}{magnified}, seed {}, window {},{})",
         args.output.display(),
+        out_size.0,
+        out_size.1,
         args.seed,
         args.window[0],
         args.window[1]
