@@ -21,27 +21,19 @@ fn unpack_vec8(v: vec4<u32>) -> Vec8 {
     );
 }
 
-// Texel of table 0 (Et) or 1 (qe).
-fn table_at(table: u32, c: vec2<i32>) -> Vec8 {
-    let i = params.et_base + ex_index(c);
-    return unpack_vec8(select(qe[i], et[i], table == 0u));
+// Texels of Et and qe. Two functions, not a select() between tables: select evaluates
+// both loads.
+fn et_texel(c: vec2<i32>) -> Vec8 {
+    return unpack_vec8(et[params.et_base + ex_index(c)]);
 }
 
-// Table 0 (Et) or 1 (qe) bilinearly interpolated at a fixed-point position (weights
-// in 1/65536, rounded; exact at whole pixels).
-fn bilinear(table: u32, u: vec2<i32>) -> Vec8 {
-    let taps = bilinear_taps(read_coord_fx(u));
-    let i0 = taps.i0;
-    let i1 = taps.i1;
-    let f = taps.f;
-    let e00 = table_at(table, i0);
-    if (all(f == vec2<i32>(0))) {
-        return e00;
-    }
+fn qe_texel(c: vec2<i32>) -> Vec8 {
+    return unpack_vec8(qe[params.et_base + ex_index(c)]);
+}
+
+// Bilinear blend of four texels with fractions f (weights in 1/65536, rounded).
+fn blend(e00: Vec8, e10: Vec8, e01: Vec8, e11: Vec8, f: vec2<i32>) -> Vec8 {
     let g = vec2<i32>(256) - f;
-    let e10 = table_at(table, vec2<i32>(i1.x, i0.y));
-    let e01 = table_at(table, vec2<i32>(i0.x, i1.y));
-    let e11 = table_at(table, i1);
     let w = vec4<i32>(g.x * g.y, f.x * g.y, g.x * f.y, f.x * f.y);
     let r = vec4<i32>(32768);
     return Vec8(
@@ -50,9 +42,29 @@ fn bilinear(table: u32, u: vec2<i32>) -> Vec8 {
     );
 }
 
+// Et bilinearly interpolated at a fixed-point position (exact at whole pixels).
+fn bilinear_et(u: vec2<i32>) -> Vec8 {
+    let t = bilinear_taps(read_coord_fx(u));
+    let e00 = et_texel(t.i0);
+    if (all(t.f == vec2<i32>(0))) {
+        return e00;
+    }
+    return blend(e00, et_texel(vec2<i32>(t.i1.x, t.i0.y)), et_texel(vec2<i32>(t.i0.x, t.i1.y)), et_texel(t.i1), t.f);
+}
+
+// The same for qe.
+fn bilinear_qe(u: vec2<i32>) -> Vec8 {
+    let t = bilinear_taps(read_coord_fx(u));
+    let e00 = qe_texel(t.i0);
+    if (all(t.f == vec2<i32>(0))) {
+        return e00;
+    }
+    return blend(e00, qe_texel(vec2<i32>(t.i1.x, t.i0.y)), qe_texel(vec2<i32>(t.i0.x, t.i1.y)), qe_texel(t.i1), t.f);
+}
+
 // Projected distance against qe interpolated at candidate c.
 fn projected_distance_at(ns_lo: vec4<i32>, ns_hi: vec4<i32>, c: vec2<i32>) -> u32 {
-    let e = bilinear(1u, c);
+    let e = bilinear_qe(c);
     let m = vec4<i32>(2 * QE_MAX);
     let a = vec4<u32>(clamp(ns_lo - e.lo, -m, m));
     let b = vec4<u32>(clamp(ns_hi - e.hi, -m, m));
@@ -66,7 +78,7 @@ fn predict(q: vec2<i32>, j: vec4<i32>, d: vec2<i32>, dp: vec2<i32>) -> Vec8 {
     let s = coords[region_index(q + delta)];
     let h = params.spacing;
     let u = s - scaled_jd(h, j, delta) + (h << COORD_FRAC) * d;
-    return bilinear(0u, u);
+    return bilinear_et(u);
 }
 
 fn prediction_sum(q: vec2<i32>, j: vec4<i32>, d: vec2<i32>) -> Vec8 {

@@ -53,7 +53,7 @@ struct Params {
     dither: u32,
     // Gathers: blend the neighbours' predicted colours across patch seams.
     seam_blend: u32,
-    _pad9: u32,
+    inset: i32,
 }
 
 @group(0) @binding(0) var<uniform> params: Params;
@@ -222,8 +222,9 @@ fn subpass_axis(cls: i32, origin: i32, size: i32, g: i32) -> i32 {
     if (cls == 2) {
         return select(-1, size - 1, g == 0);
     }
-    let v = ((cls - origin) & 1) + 2 * g;
-    if (v >= size || (odd_wrap && v == size - 1)) {
+    let inset = params.inset;
+    let v = inset + ((cls - origin - inset) & 1) + 2 * g;
+    if (v >= size - inset || (odd_wrap && v == size - 1)) {
         return -1;
     }
     return v;

@@ -89,7 +89,10 @@ pub struct PassParams {
     /// Gathers: 1 blends the colours that the 4 neighbours predict across patch seams
     /// (see `gather.rs`), 0 copies the exemplar at the coordinate.
     pub seam_blend: u32,
-    pub _pad: u32,
+    /// Correction subpasses: only pixels at least `inset` from every edge of the region
+    /// are updated (the outer ring cannot reach the exact part of the region any more;
+    /// see `SynthPlan::schedule`).
+    pub inset: i32,
 }
 
 /// Dynamic uniform offsets must be multiples of this (the WebGPU default limit).
@@ -366,13 +369,13 @@ pub fn bilinear_taps(u: [i32; 2], p: &PassParams) -> ([i32; 2], [i32; 2], [i32; 
 /// `subpass_axis` in common.wgsl): the pixels of absolute parity `class`, except that a
 /// periodic region of odd size >= 3 puts its last pixel in class 2 (it neighbours pixel 0
 /// across the wrap, which has the same parity), so no two updated pixels are neighbours.
-pub fn subpass_axis(class: i32, origin: i32, size: i32, periodic: bool) -> Vec<i32> {
+pub fn subpass_axis(class: i32, origin: i32, size: i32, periodic: bool, inset: i32) -> Vec<i32> {
     let odd_wrap = periodic && size & 1 == 1 && size >= 3;
     if class == 2 {
         return vec![size - 1];
     }
-    let start = (class - origin) & 1;
-    (start..size)
+    let start = inset + ((class - origin - inset) & 1);
+    (start..size - inset)
         .step_by(2)
         .filter(|&v| !(odd_wrap && v == size - 1))
         .collect()
@@ -386,8 +389,8 @@ pub fn has_wrap_class(size: i32, periodic: bool) -> bool {
 /// The pixels a correction subpass updates, row by row.
 pub fn subpass_pixels(p: &PassParams) -> Vec<[i32; 2]> {
     let periodic = p.periodic != 0;
-    let xs = subpass_axis(p.parity[0], p.origin[0], p.size[0], periodic);
-    let ys = subpass_axis(p.parity[1], p.origin[1], p.size[1], periodic);
+    let xs = subpass_axis(p.parity[0], p.origin[0], p.size[0], periodic, p.inset);
+    let ys = subpass_axis(p.parity[1], p.origin[1], p.size[1], periodic, p.inset);
     ys.iter()
         .flat_map(|&y| xs.iter().map(move |&x| [x, y]))
         .collect()
