@@ -224,3 +224,29 @@ fn every_embedded_shader_builds_a_compute_pipeline() {
         );
     }
 }
+
+/// Pipelines built ahead of time are valid, shared by the synthesizers of a context, and
+/// a synthesis afterwards runs without errors.
+#[test]
+fn pipelines_prepared_ahead_of_time() {
+    let ctx = context();
+    ctx.prepare_pipelines(false).unwrap();
+    ctx.prepare_pipelines(true).unwrap();
+    ctx.take_uncaptured_errors().unwrap();
+    let exemplar =
+        texsyn::image_io::load_exemplar(std::path::Path::new("assets/gravel.png")).unwrap();
+    let analysis = std::sync::Arc::new(
+        texsyn::analysis::analyze(&exemplar, &Default::default(), |_| {}).unwrap(),
+    );
+    for _ in 0..2 {
+        let s = texsyn::gpu::synth::GpuSynthesizer::new(&ctx, analysis.clone()).unwrap();
+        let params = texsyn::SynthParams {
+            width: 24,
+            height: 16,
+            ..Default::default()
+        };
+        let out = s.synthesize_to_host(&ctx, &params).unwrap();
+        assert_eq!(out.colors.len(), 24 * 16);
+    }
+    ctx.take_uncaptured_errors().unwrap();
+}

@@ -62,6 +62,8 @@ pub struct GpuContext {
     pub adapter_info: wgpu::AdapterInfo,
     /// Errors that escaped every error scope (see [`take_uncaptured_errors`](Self::take_uncaptured_errors)).
     uncaptured: Arc<Mutex<Vec<String>>>,
+    /// The synthesis passes' pipelines, shared by every synthesizer on this device.
+    pipelines: Arc<std::sync::OnceLock<Arc<crate::gpu::synth::PassPipelines>>>,
 }
 
 impl GpuContext {
@@ -178,7 +180,24 @@ impl GpuContext {
             queue,
             adapter_info,
             uncaptured,
+            pipelines: Default::default(),
         }
+    }
+
+    /// The synthesis passes' bind group layout and pipelines on this device.
+    pub(crate) fn pass_pipelines(&self) -> Arc<crate::gpu::synth::PassPipelines> {
+        self.pipelines
+            .get_or_init(|| Arc::new(crate::gpu::synth::PassPipelines::new(&self.device)))
+            .clone()
+    }
+
+    /// Builds the compute pipelines of a 2D synthesis (`anisometric`: along a field) now
+    /// instead of on first use, e.g. while an application loads, so that its first
+    /// synthesis does not stall (tens of milliseconds on lavapipe, more with some
+    /// drivers). Optional: pipelines are otherwise built when first needed. Every
+    /// synthesizer on this context shares them.
+    pub fn prepare_pipelines(&self, anisometric: bool) -> Result<()> {
+        self.scoped(|| self.pass_pipelines().prepare(self, anisometric))
     }
 
     /// One line about the adapter, e.g.

@@ -116,21 +116,8 @@ struct Scratch {
 /// An exemplar uploaded to a device, ready to synthesize any number of textures.
 pub struct GpuSynthesizer {
     analysis: Arc<Analysis>,
-    layout: wgpu::BindGroupLayout,
-    pipeline_layout: wgpu::PipelineLayout,
-    upsample: LazyPipeline,
-    jitter: LazyPipeline,
-    correct: LazyPipeline,
-    gather: LazyPipeline,
-    upsample_aniso: LazyPipeline,
-    correct_aniso: LazyPipeline,
-    gather_aniso: LazyPipeline,
-    gather_map: LazyPipeline,
-    magnify: LazyPipeline,
-    fill: LazyPipeline,
-    advect: LazyPipeline,
-    advect_copy: LazyPipeline,
-    distortion: LazyPipeline,
+    /// The device's pass pipelines, shared by every synthesizer on it.
+    pipelines: Arc<PassPipelines>,
     /// 16-byte stand-in for the velocity binding outside advection.
     no_velocity: wgpu::Buffer,
     et: wgpu::Buffer,
@@ -188,6 +175,142 @@ impl LazyPipeline {
                     cache: None,
                 })
         })
+    }
+}
+
+/// The bind group layout every pass shares and the pipelines of the 13 passes, built on
+/// first use. One per device ([`GpuContext`] keeps it), so that every synthesizer on a
+/// device shares compiled pipelines, and so that they can be built ahead of time
+/// ([`GpuContext::prepare_pipelines`]) while the host does other work.
+pub(crate) struct PassPipelines {
+    layout: wgpu::BindGroupLayout,
+    pipeline_layout: wgpu::PipelineLayout,
+    upsample: LazyPipeline,
+    jitter: LazyPipeline,
+    correct: LazyPipeline,
+    gather: LazyPipeline,
+    upsample_aniso: LazyPipeline,
+    correct_aniso: LazyPipeline,
+    gather_aniso: LazyPipeline,
+    gather_map: LazyPipeline,
+    magnify: LazyPipeline,
+    fill: LazyPipeline,
+    advect: LazyPipeline,
+    advect_copy: LazyPipeline,
+    distortion: LazyPipeline,
+}
+
+impl std::fmt::Debug for PassPipelines {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("PassPipelines").finish_non_exhaustive()
+    }
+}
+
+impl PassPipelines {
+    pub(crate) fn new(device: &wgpu::Device) -> Self {
+        let mut entries = vec![wgpu::BindGroupLayoutEntry {
+            binding: 0,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Uniform,
+                has_dynamic_offset: true,
+                min_binding_size: wgpu::BufferSize::new(std::mem::size_of::<PassParams>() as u64),
+            },
+            count: None,
+        }];
+        entries.push(storage_entry(1, false));
+        entries.push(storage_entry(8, true));
+        entries.push(storage_entry(9, true));
+        entries.push(storage_entry(10, true));
+        for b in [2, 3, 4, 6] {
+            entries.push(storage_entry(b, true));
+        }
+        entries.push(wgpu::BindGroupLayoutEntry {
+            binding: 5,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Uniform,
+                has_dynamic_offset: true,
+                min_binding_size: wgpu::BufferSize::new(PROJ_BYTES),
+            },
+            count: None,
+        });
+        entries.push(wgpu::BindGroupLayoutEntry {
+            binding: 7,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::StorageTexture {
+                access: wgpu::StorageTextureAccess::WriteOnly,
+                format: OUTPUT_FORMAT,
+                view_dimension: wgpu::TextureViewDimension::D2,
+            },
+            count: None,
+        });
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("texsyn passes"),
+            entries: &entries,
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("texsyn passes"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        Self {
+            layout,
+            pipeline_layout,
+            upsample: LazyPipeline::new(&shaders::UPSAMPLE),
+            jitter: LazyPipeline::new(&shaders::JITTER),
+            correct: LazyPipeline::new(&shaders::CORRECT),
+            gather: LazyPipeline::new(&shaders::GATHER),
+            upsample_aniso: LazyPipeline::new(&shaders::UPSAMPLE_ANISO),
+            correct_aniso: LazyPipeline::new(&shaders::CORRECT_ANISO),
+            gather_aniso: LazyPipeline::new(&shaders::GATHER_ANISO),
+            gather_map: LazyPipeline::new(&shaders::GATHER_MAP),
+            magnify: LazyPipeline::new(&shaders::MAGNIFY),
+            fill: LazyPipeline::new(&shaders::FILL),
+            advect: LazyPipeline::new(&shaders::ADVECT),
+            advect_copy: LazyPipeline::new(&shaders::ADVECT_COPY),
+            distortion: LazyPipeline::new(&shaders::DISTORTION),
+        }
+    }
+
+    /// The pipeline of a pass, built now if needed.
+    fn get(&self, ctx: &GpuContext, kind: PassKind) -> &wgpu::ComputePipeline {
+        let lazy = match kind {
+            PassKind::Upsample => &self.upsample,
+            PassKind::Jitter => &self.jitter,
+            PassKind::Correct => &self.correct,
+            PassKind::Gather => &self.gather,
+            PassKind::UpsampleAniso => &self.upsample_aniso,
+            PassKind::CorrectAniso => &self.correct_aniso,
+            PassKind::GatherAniso => &self.gather_aniso,
+            PassKind::Fill => &self.fill,
+            PassKind::AdvectCopy => &self.advect_copy,
+            PassKind::Advect => &self.advect,
+            PassKind::Distortion => &self.distortion,
+        };
+        lazy.get(ctx, &self.pipeline_layout)
+    }
+
+    /// Builds the pipelines of a plain 2D synthesis (isometric or anisometric).
+    pub(crate) fn prepare(&self, ctx: &GpuContext, anisometric: bool) {
+        let kinds = if anisometric {
+            [
+                PassKind::UpsampleAniso,
+                PassKind::Jitter,
+                PassKind::CorrectAniso,
+                PassKind::GatherAniso,
+            ]
+        } else {
+            [
+                PassKind::Upsample,
+                PassKind::Jitter,
+                PassKind::Correct,
+                PassKind::Gather,
+            ]
+        };
+        for k in kinds {
+            self.get(ctx, k);
+        }
     }
 }
 
@@ -273,71 +396,9 @@ impl GpuSynthesizer {
             });
             let colors = init("texsyn colors", &padded(&a.colors));
 
-            let mut entries = vec![wgpu::BindGroupLayoutEntry {
-                binding: 0,
-                visibility: wgpu::ShaderStages::COMPUTE,
-                ty: wgpu::BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Uniform,
-                    has_dynamic_offset: true,
-                    min_binding_size: wgpu::BufferSize::new(
-                        std::mem::size_of::<PassParams>() as u64
-                    ),
-                },
-                count: None,
-            }];
-            entries.push(storage_entry(1, false));
-            entries.push(storage_entry(8, true));
-            entries.push(storage_entry(9, true));
-            entries.push(storage_entry(10, true));
-            for b in [2, 3, 4, 6] {
-                entries.push(storage_entry(b, true));
-            }
-            entries.push(wgpu::BindGroupLayoutEntry {
-                binding: 5,
-                visibility: wgpu::ShaderStages::COMPUTE,
-                ty: wgpu::BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Uniform,
-                    has_dynamic_offset: true,
-                    min_binding_size: wgpu::BufferSize::new(PROJ_BYTES),
-                },
-                count: None,
-            });
-            entries.push(wgpu::BindGroupLayoutEntry {
-                binding: 7,
-                visibility: wgpu::ShaderStages::COMPUTE,
-                ty: wgpu::BindingType::StorageTexture {
-                    access: wgpu::StorageTextureAccess::WriteOnly,
-                    format: OUTPUT_FORMAT,
-                    view_dimension: wgpu::TextureViewDimension::D2,
-                },
-                count: None,
-            });
-            let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                label: Some("texsyn passes"),
-                entries: &entries,
-            });
-            let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                label: Some("texsyn passes"),
-                bind_group_layouts: &[Some(&layout)],
-                immediate_size: 0,
-            });
             Self {
-                upsample: LazyPipeline::new(&shaders::UPSAMPLE),
-                jitter: LazyPipeline::new(&shaders::JITTER),
-                correct: LazyPipeline::new(&shaders::CORRECT),
-                gather: LazyPipeline::new(&shaders::GATHER),
-                upsample_aniso: LazyPipeline::new(&shaders::UPSAMPLE_ANISO),
-                correct_aniso: LazyPipeline::new(&shaders::CORRECT_ANISO),
-                gather_aniso: LazyPipeline::new(&shaders::GATHER_ANISO),
-                gather_map: LazyPipeline::new(&shaders::GATHER_MAP),
-                magnify: LazyPipeline::new(&shaders::MAGNIFY),
-                fill: LazyPipeline::new(&shaders::FILL),
-                advect: LazyPipeline::new(&shaders::ADVECT),
-                advect_copy: LazyPipeline::new(&shaders::ADVECT_COPY),
-                distortion: LazyPipeline::new(&shaders::DISTORTION),
+                pipelines: ctx.pass_pipelines(),
                 no_velocity: init("texsyn no velocity", &[0u8; 16]),
-                layout,
-                pipeline_layout,
                 et,
                 qe,
                 offsets,
@@ -529,7 +590,7 @@ impl GpuSynthesizer {
         let make_bind_group = |colors: &wgpu::Buffer, target: &wgpu::TextureView| {
             ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("texsyn passes"),
-                layout: &self.layout,
+                layout: &self.pipelines.layout,
                 entries: &[
                     wgpu::BindGroupEntry {
                         binding: 0,
@@ -593,19 +654,7 @@ impl GpuSynthesizer {
                 timestamp_writes: None,
             });
             for (i, d) in schedule.iter().enumerate() {
-                let pipeline = match d.kind {
-                    PassKind::Upsample => self.upsample.get(ctx, &self.pipeline_layout),
-                    PassKind::Jitter => self.jitter.get(ctx, &self.pipeline_layout),
-                    PassKind::Correct => self.correct.get(ctx, &self.pipeline_layout),
-                    PassKind::Gather => self.gather.get(ctx, &self.pipeline_layout),
-                    PassKind::UpsampleAniso => self.upsample_aniso.get(ctx, &self.pipeline_layout),
-                    PassKind::CorrectAniso => self.correct_aniso.get(ctx, &self.pipeline_layout),
-                    PassKind::GatherAniso => self.gather_aniso.get(ctx, &self.pipeline_layout),
-                    PassKind::Fill => self.fill.get(ctx, &self.pipeline_layout),
-                    PassKind::AdvectCopy => self.advect_copy.get(ctx, &self.pipeline_layout),
-                    PassKind::Advect => self.advect.get(ctx, &self.pipeline_layout),
-                    PassKind::Distortion => self.distortion.get(ctx, &self.pipeline_layout),
-                };
+                let pipeline = self.pipelines.get(ctx, d.kind);
                 let [tx, ty] = d.threads();
                 if tx == 0 || ty == 0 {
                     continue;
@@ -625,9 +674,13 @@ impl GpuSynthesizer {
                 let group = make_bind_group(map.colors, map.view);
                 let level = plan.levels.len() - 1;
                 pass.set_pipeline(if map.magnify > 1 {
-                    self.magnify.get(ctx, &self.pipeline_layout)
+                    self.pipelines
+                        .magnify
+                        .get(ctx, &self.pipelines.pipeline_layout)
                 } else {
-                    self.gather_map.get(ctx, &self.pipeline_layout)
+                    self.pipelines
+                        .gather_map
+                        .get(ctx, &self.pipelines.pipeline_layout)
                 });
                 pass.set_bind_group(
                     0,
