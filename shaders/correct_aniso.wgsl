@@ -1,7 +1,8 @@
 // Anisometric correction subpass (mirror: src/passes/correct_aniso.rs). Continuous
 // (fixed-point) coordinates, J(p) per pixel; neighbourhood predictions read Et and the
-// projected distance reads qe with integer bilinear weights; the full distance scores a
-// candidate at its nearest exemplar pixel.
+// projected distance reads qe with integer bilinear weights (similarity-set candidates:
+// at the nearest texel); the full distance scores a candidate at its nearest exemplar
+// pixel.
 #include "shared/common.wgsl"
 #include "shared/aniso.wgsl"
 #include "shared/distance.wgsl"
@@ -161,7 +162,12 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
                     dist = full_term(s0l, s0h, n + h) + full_term(s1l, s1h, n + vec2<i32>(h.x, -h.y))
                         + full_term(s2l, s2h, n + vec2<i32>(-h.x, h.y)) + full_term(s3l, s3h, n - h);
                 } else {
-                    dist = projected_distance_at(ns_lo, ns_hi, c);
+                    // Similarity-set candidates at their nearest texel (see the mirror).
+                    if (i > 0 && (params.kset_interp | u32(opaque)) == 0u) {
+                        dist = projected_distance(ns_lo, ns_hi, nearest_texel(c));
+                    } else {
+                        dist = projected_distance_at(ns_lo, ns_hi, c);
+                    }
                 }
                 if (i > 0) {
                     dist += (dist >> 4u) * params.coherence;

@@ -54,6 +54,10 @@ struct Params {
     // Gathers: blend the neighbours' predicted colours across patch seams.
     seam_blend: u32,
     inset: i32,
+    kset_interp: u32,
+    _pad10: u32,
+    _pad11: u32,
+    _pad12: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: Params;

@@ -93,6 +93,11 @@ pub struct PassParams {
     /// are updated (the outer ring cannot reach the exact part of the region any more;
     /// see `SynthPlan::schedule`).
     pub inset: i32,
+    /// Anisometric correction, projected distance: 1 scores the similarity-set
+    /// candidates with `qe` interpolated like the coherent ones (advection frames), 0 at
+    /// their nearest texel (synthesis; see `correct_aniso.rs`).
+    pub kset_interp: u32,
+    pub _pad: [u32; 3],
 }
 
 /// Dynamic uniform offsets must be multiples of this (the WebGPU default limit).

@@ -10,8 +10,10 @@
 //! Candidates: `S[p+d] + O_i(S[p+d]) - h J d` for the 3x3 block and `i = 1..k`, the
 //! similarity offsets taken at the exemplar pixel nearest to `S[p+d]`. The projected
 //! distance (finest level by default) compares with `qe` bilinearly interpolated at the
-//! candidate (nearest-pixel scoring was measured to misregister fine detail by up to half
-//! a pixel and to break coherent patches); the full distance (coarse levels, smooth at
+//! coherent candidates (`i = 0`; nearest-pixel scoring of every candidate was measured to
+//! misregister fine detail by up to half a pixel and to break coherent patches) and at
+//! the nearest texel for the similarity-set ones (fewer seams, same energy); the full
+//! distance (coarse levels, smooth at
 //! their scale) reads `Et` at the four diagonals of the candidate's nearest pixel. Same tie rule and
 //! coherence bias as the isometric pass. With `J = I` every coordinate stays a multiple
 //! of 256 and the result is the isometric pass's times 256 (tested).
@@ -111,18 +113,25 @@ pub fn correct_pixel(
     let sums = prediction_sums(p, t, coords, jac, q);
     let full = p.full_distance != 0;
     let ns = if full { [0; DIM] } else { project(p, t, &sums) };
-    let distance = |c: [i32; 2]| {
+    // `interpolate`: the coherent candidates are scored with `qe` interpolated at their
+    // sub-pixel position; the similarity-set ones (jumps elsewhere in the exemplar, of
+    // arbitrary sub-pixel phase) at their nearest texel, which measured fewer seams at
+    // the same texture energy.
+    let distance = |c: [i32; 2], interpolate: bool| {
         if full {
             full_distance(p, t, &sums, nearest_texel(c, p))
-        } else {
+        } else if interpolate {
             let e = table_bilinear(p, t.qe, c);
+            projected_distance_i32(&ns, &e)
+        } else {
+            let e = t.qe[ex_index(nearest_texel(c, p), p)].map(i32::from);
             projected_distance_i32(&ns, &e)
         }
     };
     let mut best = coords[base + region_index(q, p)];
     let mut best_d = u32::MAX;
     if is_valid_fx(best, p) {
-        best_d = distance(best);
+        best_d = distance(best, true);
     }
     let km1 = (p.k - 1).max(0) as usize;
     for dy in -1..=1 {
@@ -145,7 +154,7 @@ pub fn correct_pixel(
                 if c == best {
                     continue;
                 }
-                let mut d = distance(c);
+                let mut d = distance(c, i == 0 || p.kset_interp != 0);
                 if i > 0 {
                     d += (d >> 4) * p.coherence;
                 }

@@ -423,6 +423,8 @@ impl SynthPlan {
             dither: 0,
             seam_blend: self.params.seam_blend as u32,
             inset: 0,
+            kset_interp: 0,
+            _pad: [0; 3],
         }
     }
 }
@@ -612,7 +614,11 @@ impl SynthPlan {
                         keep_fill = passes > 1 || subpass % 2 == (frame + level as u64) % 2;
                         subpass += 1;
                         if keep_fill {
-                            out.push(*d);
+                            // Every candidate interpolated: nearest-texel scoring of the
+                            // similarity sets measured more speckle in moving textures.
+                            let mut d = *d;
+                            d.params.kset_interp = 1;
+                            out.push(d);
                         }
                     }
                     PassKind::Fill if keep_fill => out.push(*d),
