@@ -9,11 +9,12 @@
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     opaque = i32(gid.z);
     let p = vec2<i32>(gid.xy);
-    if (any(p >= (params.window_size | vec2<i32>(opaque)))) {
+    let wi = window_coord_index(p);
+    if (wi < 0) {
         return;
     }
     let q = p + params.window_offset;
-    let c = coords[params.coord_base + u32(q.y * params.size.x + q.x)];
+    let c = coords[wi];
     let own = colors[ex_index(c)];
     if ((params.seam_blend | u32(opaque)) == 0u) {
         textureStore(out_color, p, unpack4x8unorm(own));

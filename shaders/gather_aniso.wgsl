@@ -31,11 +31,12 @@ fn color_at(u: vec2<i32>) -> vec4<i32> {
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     opaque = i32(gid.z);
     let p = vec2<i32>(gid.xy);
-    if (any(p >= (params.window_size | vec2<i32>(opaque)))) {
+    let wi = window_coord_index(p);
+    if (wi < 0) {
         return;
     }
     let q = p + params.window_offset;
-    let i = params.coord_base + u32(q.y * params.size.x + q.x);
+    let i = u32(wi);
     let c = coords[i];
     var v = color_at(c);
     if ((params.seam_blend | u32(opaque)) != 0u) {

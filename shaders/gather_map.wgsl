@@ -14,11 +14,11 @@ fn map_u(c: vec2<i32>) -> vec4<i32> {
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     opaque = i32(gid.z);
     let p = vec2<i32>(gid.xy);
-    if (any(p >= (params.window_size | vec2<i32>(opaque)))) {
+    let wi = window_coord_index(p);
+    if (wi < 0) {
         return;
     }
-    let q = p + params.window_offset;
-    let idx = params.coord_base + u32(q.y * params.size.x + q.x);
+    let idx = u32(wi);
     let c = coords[idx];
     var v: vec4<i32>;
     if ((params.coord_frac | u32(opaque)) == 0u) {

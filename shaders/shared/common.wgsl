@@ -202,6 +202,16 @@ fn ex_index(c: vec2<i32>) -> u32 {
     return u32(c.y * params.ex_size.x + c.x);
 }
 
+// Gathers: the index in `coords` of output-window pixel p (finest level), or -1 outside
+// the window.
+fn window_coord_index(p: vec2<i32>) -> i32 {
+    if (any(p >= (params.window_size | vec2<i32>(opaque)))) {
+        return -1;
+    }
+    let q = p + params.window_offset;
+    return i32(params.coord_base) + q.y * params.size.x + q.x;
+}
+
 fn lo16(w: u32) -> i32 {
     return bitcast<i32>(w << 16u) >> 16u;
 }
