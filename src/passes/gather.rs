@@ -21,21 +21,35 @@ pub fn run(
     if p.seam_blend == 0 {
         return gather_window(p, coords, at);
     }
-    let base = p.coord_base as usize;
     let mut out = gather_window(p, coords, at);
+    blend_seams(p, &mut out, at, |q, d, c| {
+        let s = coords[p.coord_base as usize + region_index([q[0] + d[0], q[1] + d[1]], p)];
+        let pred = read_coord([s[0] - d[0], s[1] - d[1]], p);
+        (pred != c).then_some(pred)
+    });
+    out
+}
+
+/// Seam blending over a gathered window (`gather_window`'s output), shared by the
+/// isometric and anisometric gathers: each pixel's colour counts twice, and each of its
+/// 4 neighbours `d` whose prediction `predict(q, d, c)` (q: the pixel's region position,
+/// c: its coordinate) does not continue it adds the colour predicted there once.
+pub(crate) fn blend_seams(
+    p: &PassParams,
+    out: &mut (Vec<[i32; 2]>, Vec<[u8; 4]>),
+    color: impl Fn([i32; 2]) -> [u8; 4],
+    predict: impl Fn([i32; 2], [i32; 2], [i32; 2]) -> Option<[i32; 2]>,
+) {
     let mut i = 0;
     for y in 0..p.window_size[1] {
         for x in 0..p.window_size[0] {
             let q = [x + p.window_offset[0], y + p.window_offset[1]];
             let c = out.0[i];
-            let own = at(c);
-            let mut sum = own.map(|v| 2 * v as u32);
+            let mut sum = color(c).map(|v| 2 * v as u32);
             let mut weight = 2u32;
             for d in [[1, 0], [-1, 0], [0, 1], [0, -1]] {
-                let s = coords[base + region_index([q[0] + d[0], q[1] + d[1]], p)];
-                let pred = read_coord([s[0] - d[0], s[1] - d[1]], p);
-                if pred != c {
-                    let v = at(pred);
+                if let Some(pred) = predict(q, d, c) {
+                    let v = color(pred);
                     for k in 0..4 {
                         sum[k] += v[k] as u32;
                     }
@@ -46,7 +60,6 @@ pub fn run(
             i += 1;
         }
     }
-    out
 }
 
 /// The window's coordinates (finest level) and the colour `color(c)` of each, row-major:

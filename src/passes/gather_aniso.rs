@@ -29,29 +29,17 @@ pub fn run(
         return out;
     }
     let base = p.coord_base as usize;
-    let mut i = 0;
-    for y in 0..p.window_size[1] {
-        for x in 0..p.window_size[0] {
-            let q = [x + p.window_offset[0], y + p.window_offset[1]];
-            let c = out.0[i];
+    super::gather::blend_seams(
+        p,
+        &mut out,
+        |c| color_at(p, colors, c),
+        |q, d, c| {
             let j = jac[base + region_index(q, p)];
-            let mut sum = color_at(p, colors, c).map(|v| 2 * v as i32);
-            let mut weight = 2i32;
-            for d in [[1, 0], [-1, 0], [0, 1], [0, -1]] {
-                let s = coords[base + region_index([q[0] + d[0], q[1] + d[1]], p)];
-                let o = scaled_jd(p.spacing, j, d);
-                let pred = [s[0] - o[0], s[1] - o[1]];
-                if !same_patch(pred, c, p) {
-                    let v = color_at(p, colors, pred);
-                    for k in 0..4 {
-                        sum[k] += v[k] as i32;
-                    }
-                    weight += 1;
-                }
-            }
-            out.1[i] = sum.map(|v| ((v + weight / 2) / weight) as u8);
-            i += 1;
-        }
-    }
+            let s = coords[base + region_index([q[0] + d[0], q[1] + d[1]], p)];
+            let o = scaled_jd(p.spacing, j, d);
+            let pred = [s[0] - o[0], s[1] - o[1]];
+            (!same_patch(pred, c, p)).then_some(pred)
+        },
+    );
     out
 }
