@@ -4,17 +4,18 @@
 #include "shared/common.wgsl"
 #include "shared/distance.wgsl"
 
-// Sum of the three predictions of Et at q + d (3 N_S(q; d)).
-fn prediction_sum(q: vec2<i32>, d: vec2<i32>, h: vec2<i32>, s_lo: ptr<function, vec4<i32>>, s_hi: ptr<function, vec4<i32>>) {
+// Sum of the three predictions of Et at q + d (3 N_S(q; d)), from the neighbours'
+// coordinates.
+fn prediction_sum(n: Neighbours, d: vec2<i32>, h: vec2<i32>, s_lo: ptr<function, vec4<i32>>, s_hi: ptr<function, vec4<i32>>) {
     var lo: vec4<i32>;
     var hi: vec4<i32>;
-    et_at(read_coord(coords[region_index(q + d)]), &lo, &hi);
+    et_at(read_coord(neighbour(n, d)), &lo, &hi);
     var sum_lo = lo;
     var sum_hi = hi;
-    et_at(read_coord(coords[region_index(q + vec2<i32>(d.x, 0))] + vec2<i32>(0, h.y * d.y)), &lo, &hi);
+    et_at(read_coord(neighbour(n, vec2<i32>(d.x, 0)) + vec2<i32>(0, h.y * d.y)), &lo, &hi);
     sum_lo += lo;
     sum_hi += hi;
-    et_at(read_coord(coords[region_index(q + vec2<i32>(0, d.y))] + vec2<i32>(h.x * d.x, 0)), &lo, &hi);
+    et_at(read_coord(neighbour(n, vec2<i32>(0, d.y)) + vec2<i32>(h.x * d.x, 0)), &lo, &hi);
     *s_lo = sum_lo + lo;
     *s_hi = sum_hi + hi;
 }
@@ -27,6 +28,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let h = params.step;
+    let n = load_neighbours(q);
 
     // Synthesized neighbourhood: per diagonal, the sum of three predictions. Written
     // out without local arrays: CPU drivers turn dynamically indexed local arrays into
@@ -35,10 +37,10 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     var s1l: vec4<i32>; var s1h: vec4<i32>;
     var s2l: vec4<i32>; var s2h: vec4<i32>;
     var s3l: vec4<i32>; var s3h: vec4<i32>;
-    prediction_sum(q, vec2<i32>(1, 1), h, &s0l, &s0h);
-    prediction_sum(q, vec2<i32>(1, -1), h, &s1l, &s1h);
-    prediction_sum(q, vec2<i32>(-1, 1), h, &s2l, &s2h);
-    prediction_sum(q, vec2<i32>(-1, -1), h, &s3l, &s3h);
+    prediction_sum(n, vec2<i32>(1, 1), h, &s0l, &s0h);
+    prediction_sum(n, vec2<i32>(1, -1), h, &s1l, &s1h);
+    prediction_sum(n, vec2<i32>(-1, 1), h, &s2l, &s2h);
+    prediction_sum(n, vec2<i32>(-1, -1), h, &s3l, &s3h);
     let full = (params.full_distance | u32(opaque)) != 0u;
     var ns_lo = vec4<i32>(0);
     var ns_hi = vec4<i32>(0);
@@ -54,7 +56,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     // Candidates: the current value first (ties keep it), then the k-coherent
     // candidates of the 3x3 neighbours, row-major from (-1, -1).
     let self_index = region_index(q);
-    var best = coords[self_index];
+    var best = n.zz;
     var best_d = 0xffffffffu;
     if (is_valid(best)) {
         if (full) {
@@ -68,7 +70,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     for (var dy = -1; dy <= 1; dy++) {
         for (var dx = -1; dx <= 1; dx++) {
             let dd = vec2<i32>(dx, dy);
-            let s = coords[region_index(q + dd)];
+            let s = neighbour(n, dd);
             let obase = params.off_base + ex_index(s) * km1;
             for (var i = 0; i < (params.k | opaque); i++) {
                 var o = vec2<i32>(0);

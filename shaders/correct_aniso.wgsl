@@ -74,18 +74,18 @@ fn projected_distance_at(ns_lo: vec4<i32>, ns_hi: vec4<i32>, c: vec2<i32>) -> u3
 }
 
 // One prediction of Et at q + D from the neighbour in the direction of J^-1 D'.
-fn predict(q: vec2<i32>, j: vec4<i32>, d: vec2<i32>, dp: vec2<i32>) -> Vec8 {
+fn predict(n: Neighbours, j: vec4<i32>, d: vec2<i32>, dp: vec2<i32>) -> Vec8 {
     let delta = phi_inv(j, dp);
-    let s = coords[region_index(q + delta)];
+    let s = neighbour(n, delta);
     let h = params.spacing;
     let u = s - scaled_jd(h, j, delta) + (h << COORD_FRAC) * d;
     return bilinear_et(u);
 }
 
-fn prediction_sum(q: vec2<i32>, j: vec4<i32>, d: vec2<i32>) -> Vec8 {
-    let a = predict(q, j, d, d);
-    let b = predict(q, j, d, vec2<i32>(d.x, 0));
-    let c = predict(q, j, d, vec2<i32>(0, d.y));
+fn prediction_sum(n: Neighbours, j: vec4<i32>, d: vec2<i32>) -> Vec8 {
+    let a = predict(n, j, d, d);
+    let b = predict(n, j, d, vec2<i32>(d.x, 0));
+    let c = predict(n, j, d, vec2<i32>(0, d.y));
     return Vec8(a.lo + b.lo + c.lo, a.hi + b.hi + c.hi);
 }
 
@@ -103,11 +103,12 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let j = jac[self_index];
     let h = params.step;
+    let n = load_neighbours(q);
 
-    let p0 = prediction_sum(q, j, vec2<i32>(1, 1));
-    let p1 = prediction_sum(q, j, vec2<i32>(1, -1));
-    let p2 = prediction_sum(q, j, vec2<i32>(-1, 1));
-    let p3 = prediction_sum(q, j, vec2<i32>(-1, -1));
+    let p0 = prediction_sum(n, j, vec2<i32>(1, 1));
+    let p1 = prediction_sum(n, j, vec2<i32>(1, -1));
+    let p2 = prediction_sum(n, j, vec2<i32>(-1, 1));
+    let p3 = prediction_sum(n, j, vec2<i32>(-1, -1));
     let s0l = p0.lo; let s0h = p0.hi;
     let s1l = p1.lo; let s1h = p1.hi;
     let s2l = p2.lo; let s2h = p2.hi;
@@ -124,7 +125,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         ns_hi = ns_hi >> vec4<u32>(params.shift);
     }
 
-    var best = coords[self_index];
+    var best = n.zz;
     var best_d = 0xffffffffu;
     if (is_valid_fx(best)) {
         if (full) {
@@ -139,7 +140,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     for (var dy = -1; dy <= 1; dy++) {
         for (var dx = -1; dx <= 1; dx++) {
             let dd = vec2<i32>(dx, dy);
-            let s = coords[region_index(q + dd)];
+            let s = neighbour(n, dd);
             let hjd = scaled_jd(params.spacing, j, dd);
             let obase = params.off_base + ex_index(nearest_texel(s)) * km1;
             for (var i = 0; i < (params.k | opaque); i++) {

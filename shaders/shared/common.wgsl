@@ -198,6 +198,37 @@ fn region_index(q: vec2<i32>) -> u32 {
     return params.coord_base + u32(c.y * params.size.x + c.x);
 }
 
+// The coordinates of a pixel's 3x3 neighbourhood, loaded once per correction: every
+// storage read costs CPU drivers a loop over the SIMD lanes, and the predictions and the
+// candidates read the same nine pixels (names: x then y, m = -1, z = 0, p = +1).
+struct Neighbours {
+    mm: vec2<i32>, zm: vec2<i32>, pm: vec2<i32>,
+    mz: vec2<i32>, zz: vec2<i32>, pz: vec2<i32>,
+    mp: vec2<i32>, zp: vec2<i32>, pp: vec2<i32>,
+}
+
+fn load_neighbours(q: vec2<i32>) -> Neighbours {
+    return Neighbours(
+        coords[region_index(q + vec2<i32>(-1, -1))],
+        coords[region_index(q + vec2<i32>(0, -1))],
+        coords[region_index(q + vec2<i32>(1, -1))],
+        coords[region_index(q + vec2<i32>(-1, 0))],
+        coords[region_index(q)],
+        coords[region_index(q + vec2<i32>(1, 0))],
+        coords[region_index(q + vec2<i32>(-1, 1))],
+        coords[region_index(q + vec2<i32>(0, 1))],
+        coords[region_index(q + vec2<i32>(1, 1))],
+    );
+}
+
+// The neighbour at offset d (components in -1..=1): selects, no memory access.
+fn neighbour(n: Neighbours, d: vec2<i32>) -> vec2<i32> {
+    let m = select(select(n.mz, n.pz, d.x > 0), n.zz, d.x == 0);
+    let lo = select(select(n.mm, n.pm, d.x > 0), n.zm, d.x == 0);
+    let hi = select(select(n.mp, n.pp, d.x > 0), n.zp, d.x == 0);
+    return select(select(lo, hi, d.y > 0), m, d.y == 0);
+}
+
 fn ex_index(c: vec2<i32>) -> u32 {
     return u32(c.y * params.ex_size.x + c.x);
 }
