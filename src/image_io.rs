@@ -424,12 +424,41 @@ fn encode_with_fallback(img: &DynamicImage, format: ImageFormat) -> image::Image
     Err(first)
 }
 
+/// Binary PGM (P5) for grey images, binary PPM (P6) for the others.
+fn encode_pnm(img: &DynamicImage) -> image::ImageResult<Vec<u8>> {
+    use image::codecs::pnm::{PnmEncoder, PnmSubtype, SampleEncoding};
+    use image::ImageEncoder;
+    let mut buf = Vec::new();
+    if img.color().channel_count() == 1 {
+        let g = img.to_luma8();
+        PnmEncoder::new(&mut buf)
+            .with_subtype(PnmSubtype::Graymap(SampleEncoding::Binary))
+            .write_image(
+                g.as_raw(),
+                g.width(),
+                g.height(),
+                image::ExtendedColorType::L8,
+            )?;
+    } else {
+        let c = img.to_rgb8();
+        PnmEncoder::new(&mut buf)
+            .with_subtype(PnmSubtype::Pixmap(SampleEncoding::Binary))
+            .write_image(
+                c.as_raw(),
+                c.width(),
+                c.height(),
+                image::ExtendedColorType::Rgb8,
+            )?;
+    }
+    Ok(buf)
+}
+
 /// Writes `rgba8` (`width * height * 4` bytes, row-major RGBA) atomically as a grey
 /// (`channels == 1`, the R channel), RGB (3) or RGBA (4) image. The format comes from the
 /// extension (see [`SUPPORTED_SAVE_EXTENSIONS`]; no extension: PNG); formats that lack
 /// the requested layout get the nearest one the encoder supports (JPEG drops alpha,
-/// HDR/EXR are written as float, `.pgm` is always grey (luminance) and `.ppm` always
-/// RGB).
+/// HDR/EXR are written as float, `.pgm` is always grey (luminance), `.ppm` always RGB
+/// and `.pnm` grey or RGB (binary P5/P6); `.pam` keeps alpha).
 pub fn save_image_atomic(
     path: &Path,
     width: u32,
@@ -470,7 +499,13 @@ pub fn save_image_atomic(
         Some("ppm") if channels != 3 => DynamicImage::ImageRgb8(img.to_rgb8()),
         _ => img,
     };
-    let bytes = encode_with_fallback(&img, format).map_err(|e| encode_err(path, e))?;
+    let bytes = match ext.as_deref() {
+        // The PNM encoder writes PAM (P7) unless told a subtype; P5/P6 are what .pnm,
+        // .pgm and .ppm readers expect (alpha is dropped, as for JPEG).
+        Some("pnm" | "pgm" | "ppm") => encode_pnm(&img),
+        _ => encode_with_fallback(&img, format),
+    }
+    .map_err(|e| encode_err(path, e))?;
     write_atomic(path, |w| {
         w.write_all(&bytes).map_err(|e| Error::Write {
             path: path.to_path_buf(),

@@ -522,6 +522,35 @@ fn advect_cli() {
         assert!(!stderr.contains("panicked"), "{stderr}");
         assert!(!out.exists(), "{args:?} left {} behind", out.display());
     }
+    // Refused before any frame is written: outputs too small for the figures, and an
+    // extension that is neither an animation nor a folder.
+    for (out, size, expect) in [
+        ("tiny.gif", "2", "at least 5x5"),
+        ("tiny", "4x16", "at least 5x5"),
+        ("frames.txt", "32", "without an extension"),
+    ] {
+        let path = dir.path(out);
+        let o = run(&[
+            "advect",
+            "assets/gravel.png",
+            "--flow",
+            "vortex",
+            "--frames",
+            "2",
+            "--size",
+            size,
+            "-o",
+            path.to_str().unwrap(),
+        ]);
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{out} {size} succeeded");
+        assert!(stderr.contains(expect), "{out} {size}: {stderr}");
+        assert!(
+            !path.exists(),
+            "{out} {size} left {} behind",
+            path.display()
+        );
+    }
     // Nothing but what the successful runs wrote: no hidden staging folders.
     let mut left: Vec<String> = std::fs::read_dir(dir.path(""))
         .unwrap()

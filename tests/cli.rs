@@ -436,6 +436,29 @@ fn bad_inputs_fail_cleanly() {
     synth("empty.png", &[], 1, "empty");
     synth("one.png", &[], 1, "1x1");
     synth("eight.png", &[], 1, "8x8");
+    // The coordinate map is always OpenEXR: another extension would mislabel it.
+    synth(
+        GRAVEL,
+        &["--coords-out", "coords.png"],
+        1,
+        "give a .exr file",
+    );
+    // An atlas the device cannot synthesize is refused before the mesh work.
+    let bunny = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/meshes/bunny.glb");
+    fails(
+        &dir,
+        &[
+            "surface",
+            bunny,
+            GRAVEL,
+            "-o",
+            "b.glb",
+            "--atlas-size",
+            "16384",
+        ],
+        1,
+        "give a smaller --atlas-size",
+    );
 
     // Usage errors (clap: exit code 2).
     synth(GRAVEL, &["--size", "0"], 2, "at least 1");
@@ -591,7 +614,9 @@ fn bench_prints_a_table() {
     let dir = TempDir::new("bench");
     let out = texsyn(&dir, &["analyze", GRAVEL, "-o", "g.tsa", "--quiet"]);
     assert!(out.status.success(), "{}", text(&out.stderr));
-    let stdout = ok(
+    // A size the device cannot take shows its error in its row, the others still run,
+    // and the exit status says the table is incomplete.
+    let out = texsyn(
         &dir,
         &[
             "bench",
@@ -604,6 +629,13 @@ fn bench_prints_a_table() {
             "1",
         ],
     );
+    assert_eq!(out.status.code(), Some(1), "{}", text(&out.stderr));
+    assert!(
+        text(&out.stderr).contains("error: 1 of the sizes failed (100000x100000)"),
+        "{}",
+        text(&out.stderr)
+    );
+    let stdout = text(&out.stdout);
     let lines: Vec<&str> = stdout.lines().collect();
     assert!(lines[0].starts_with("adapter: "), "{stdout}");
     let row = |size: &str| {

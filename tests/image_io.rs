@@ -386,6 +386,17 @@ fn save_image_every_supported_extension() {
             let ex = load_exemplar(&path)
                 .unwrap_or_else(|e| panic!("reading back {ext}/{channels}: {e}"));
             assert_eq!((ex.width, ex.height), (w, h), "{ext}");
+            // The PNM family: binary PGM/PPM that every reader takes, PAM only for .pam.
+            let magic = std::fs::read(&path).unwrap()[..2].to_vec();
+            let expect: Option<&[u8]> = match (ext, channels) {
+                ("pgm", _) | ("pnm", 1) => Some(b"P5"),
+                ("ppm", _) | ("pnm", _) => Some(b"P6"),
+                ("pam", _) => Some(b"P7"),
+                _ => None,
+            };
+            if let Some(m) = expect {
+                assert_eq!(magic, m, "{ext} with {channels} channels");
+            }
             if lossless.contains(&ext) && channels == 3 {
                 let rgb: Vec<[u8; 4]> = rgba.chunks(4).map(|p| [p[0], p[1], p[2], 255]).collect();
                 assert_eq!(ex.colors, rgb, "{ext}");

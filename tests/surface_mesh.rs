@@ -807,6 +807,7 @@ fn direction_and_scale_strings() {
         "symmetric:x",
         "symmetric:4:0,1",
         "symmetric:4:0,1,0:z",
+        "symmetric:4:0,1,0:100000001",
         "random:-1",
         "tangents:1",
         "constraints",

@@ -209,6 +209,11 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
     } else if ext.as_deref() == Some("png") {
         super::check_output_dir(&args.output)?;
         Sink::Apng(args.output.clone(), Vec::new())
+    } else if ext.is_some() && !args.output.is_dir() {
+        return Err(fail(format!(
+            "-o {}: an animation is OUT.png (animated PNG) or OUT.gif; for a folder of frames give a name without an extension (or an existing folder)",
+            args.output.display()
+        )));
     } else {
         let s = Staging::new(&args.output)?;
         let dir = s.dir.clone();
@@ -216,6 +221,14 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
         Sink::Folder(dir)
     };
     args.flow.validate()?;
+    // The temporal figures printed at the end use 5x5 windows: refuse what they cannot
+    // measure before any frame is written.
+    if args.mesh.is_none() && (args.size[0] < 5 || args.size[1] < 5) {
+        return Err(fail(format!(
+            "--size {}x{}: advection needs an output of at least 5x5 pixels",
+            args.size[0], args.size[1]
+        )));
+    }
     let source = read_source(&args.exemplar, None, args.tile.get())?;
     let ctx = GpuContext::headless()?;
     ui.info(format!("adapter: {}", ctx.describe()));

@@ -12,7 +12,9 @@ use texsyn::gpu::GpuContext;
 use texsyn::passes::SynthParams;
 
 use super::synth::{cli_hint, read_source, Source};
-use super::{channels_name, check_output_size, fmt_duration, parse_sizes, CliResult, Sizes, Ui};
+use super::{
+    channels_name, check_output_size, fail, fmt_duration, parse_sizes, CliResult, Sizes, Ui,
+};
 
 /// Exemplars up to this many pixels are analysed several times and the median reported.
 const REPEAT_ANALYSIS_PIXELS: u64 = 256 * 256;
@@ -193,6 +195,9 @@ pub fn run(ui: &Ui, args: BenchArgs) -> CliResult<()> {
         "size", "GPU median", "GPU min", "GPU max", "Mpixel/s", "incl. read-back"
     ))?;
 
+    // A size that fails shows its error in its row; the others still run, and the exit
+    // status then says that the table is incomplete.
+    let mut failed: Vec<String> = Vec::new();
     for &[w, h] in &args.sizes.0 {
         let size = format!("{w}x{h}");
         ui.progress(format!("benchmarking {size}"));
@@ -233,12 +238,22 @@ pub fn run(ui: &Ui, args: BenchArgs) -> CliResult<()> {
                 w as f64 * h as f64 / gpu.median.as_secs_f64() / 1e6,
                 fmt_duration(whole.median)
             ),
-            Err(e) => format!("{size:<11} error: {e}"),
+            Err(e) => {
+                failed.push(size.clone());
+                format!("{size:<11} error: {e}")
+            }
         };
         ui.out(line)?;
         if args.per_pass && check_output_size(&ctx, w, h).is_ok() {
             per_pass_table(ui, &ctx, &synthesizer, &params, &args)?;
         }
+    }
+    if !failed.is_empty() {
+        return Err(fail(format!(
+            "{} of the sizes failed ({}): see their rows above",
+            failed.len(),
+            failed.join(", ")
+        )));
     }
     Ok(())
 }

@@ -124,6 +124,35 @@ fn parse_direction(s: &str) -> Result<DirectionSource, String> {
     s.parse::<DirectionSource>().map_err(|e| e.to_string())
 }
 
+/// Refuses an atlas the device cannot synthesize before the mesh work (minutes for
+/// large atlases): the synthesis keeps a coordinate pyramid and a Jacobian per texel
+/// (16 bytes, about 4/3 of the atlas over all levels) in one buffer, and the texture
+/// (times the magnification) must fit the device's texture size.
+fn check_atlas_fits(ctx: &GpuContext, atlas: u32, magnify: u32) -> CliResult<()> {
+    let limits = ctx.limits();
+    let side = atlas as u64 * magnify as u64;
+    if side > limits.max_texture_dimension_2d as u64 {
+        return Err(fail(format!(
+            "--atlas-size {atlas}{}: the atlas texture would be {side} texels a side, the device allows {}; give a smaller --atlas-size",
+            if magnify > 1 { format!(" with --magnify {magnify}") } else { String::new() },
+            limits.max_texture_dimension_2d
+        )));
+    }
+    let bytes = (atlas as u64).pow(2) * 16 * 4 / 3;
+    let max = limits
+        .max_storage_buffer_binding_size
+        .min(limits.max_buffer_size);
+    if bytes > max {
+        return Err(fail(format!(
+            "--atlas-size {atlas}: its synthesis needs about {} MiB in one buffer, the device allows {} MiB; give a smaller --atlas-size (at most about {})",
+            bytes >> 20,
+            max >> 20,
+            (((max * 3 / 4) / 16) as f64).sqrt() as u64
+        )));
+    }
+    Ok(())
+}
+
 pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
     check_output_dir(&args.output)?;
     for p in [&args.render, &args.atlas_out].into_iter().flatten() {
@@ -209,6 +238,7 @@ pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
 
     let ctx = GpuContext::headless()?;
     ui.info(format!("adapter: {}", ctx.describe()));
+    check_atlas_fits(&ctx, args.atlas_size, args.magnify.unwrap_or(1))?;
     let t = Instant::now();
     let analysis = match source {
         Source::Analysis(a) => a,

@@ -239,6 +239,13 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
     check_save_extension(&args.output)?;
     if let Some(c) = &args.coords_out {
         check_output_dir(c)?;
+        let exr = c.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr"));
+        if !exr {
+            return Err(fail(format!(
+                "--coords-out {}: the coordinate map is written as OpenEXR (32-bit float); give a .exr file",
+                c.display()
+            )));
+        }
     }
     let mut outputs: Vec<&std::path::Path> = vec![&args.output];
     outputs.extend(args.coords_out.as_deref());

@@ -31,6 +31,10 @@ use crate::error::{Error, Result};
 /// Relaxation iterations of `symmetric:N` when the CLI string does not give them.
 pub const DEFAULT_SYMMETRIC_ITERATIONS: u32 = 200;
 
+/// Upper limit of the CLI's `symmetric:N:X,Y,Z:ITERATIONS` (each iteration visits every
+/// face; more only costs time).
+pub const MAX_SYMMETRIC_ITERATIONS: u32 = 100_000;
+
 /// Relaxation iterations after the inverse-distance blend of [`DirectionSource::Constraints`].
 pub const CONSTRAINT_ITERATIONS: u32 = 10;
 
@@ -971,6 +975,11 @@ impl FromStr for DirectionSource {
                         .map_err(|_| fail(format!("ITERATIONS = `{v}` is not a whole number")))?,
                     None => DEFAULT_SYMMETRIC_ITERATIONS,
                 };
+                if iterations > MAX_SYMMETRIC_ITERATIONS {
+                    return Err(fail(format!(
+                        "ITERATIONS = {iterations}; use 0 to {MAX_SYMMETRIC_ITERATIONS} (default {DEFAULT_SYMMETRIC_ITERATIONS})"
+                    )));
+                }
                 Ok(DirectionSource::Symmetric { n, up, iterations })
             }
             ("symmetric", None) => Err(fail("give N (symmetric:N)".into())),
