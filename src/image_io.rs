@@ -427,29 +427,26 @@ fn encode_with_fallback(img: &DynamicImage, format: ImageFormat) -> image::Image
 /// Binary PGM (P5) for grey images, binary PPM (P6) for the others.
 fn encode_pnm(img: &DynamicImage) -> image::ImageResult<Vec<u8>> {
     use image::codecs::pnm::{PnmEncoder, PnmSubtype, SampleEncoding};
-    use image::ImageEncoder;
-    let mut buf = Vec::new();
-    if img.color().channel_count() == 1 {
-        let g = img.to_luma8();
-        PnmEncoder::new(&mut buf)
-            .with_subtype(PnmSubtype::Graymap(SampleEncoding::Binary))
-            .write_image(
-                g.as_raw(),
-                g.width(),
-                g.height(),
-                image::ExtendedColorType::L8,
-            )?;
+    use image::{ExtendedColorType, ImageEncoder};
+    let (raw, subtype, color) = if img.color().channel_count() == 1 {
+        let g = img.to_luma8().into_raw();
+        (
+            g,
+            PnmSubtype::Graymap(SampleEncoding::Binary),
+            ExtendedColorType::L8,
+        )
     } else {
-        let c = img.to_rgb8();
-        PnmEncoder::new(&mut buf)
-            .with_subtype(PnmSubtype::Pixmap(SampleEncoding::Binary))
-            .write_image(
-                c.as_raw(),
-                c.width(),
-                c.height(),
-                image::ExtendedColorType::Rgb8,
-            )?;
-    }
+        let c = img.to_rgb8().into_raw();
+        (
+            c,
+            PnmSubtype::Pixmap(SampleEncoding::Binary),
+            ExtendedColorType::Rgb8,
+        )
+    };
+    let mut buf = Vec::new();
+    PnmEncoder::new(&mut buf)
+        .with_subtype(subtype)
+        .write_image(&raw, img.width(), img.height(), color)?;
     Ok(buf)
 }
 

@@ -455,6 +455,15 @@ pub fn check_output_size(
     check_output_size_hint(ctx, width, height, WINDOW_HINT)
 }
 
+/// The largest buffer a synthesis can bind in one piece (its coordinate pyramid and
+/// Jacobian field live in one buffer each).
+pub fn max_buffer_binding(ctx: &texsyn::gpu::GpuContext) -> u64 {
+    let limits = ctx.limits();
+    limits
+        .max_storage_buffer_binding_size
+        .min(limits.max_buffer_size)
+}
+
 /// [`check_output_size`] with the advice to give when the size is too large.
 pub fn check_output_size_hint(
     ctx: &texsyn::gpu::GpuContext,
@@ -475,9 +484,7 @@ pub fn check_output_size_hint(
         return Err(too_large(format!("at most {max_dim} pixels a side")));
     }
     let bytes = width as u64 * height as u64 * 8;
-    let max = limits
-        .max_storage_buffer_binding_size
-        .min(limits.max_buffer_size);
+    let max = max_buffer_binding(ctx);
     if bytes > max {
         return Err(too_large(format!(
             "its coordinate pyramid needs more than {} MiB in one buffer, the device allows {} MiB",

@@ -139,9 +139,7 @@ fn check_atlas_fits(ctx: &GpuContext, atlas: u32, magnify: u32) -> CliResult<()>
         )));
     }
     let bytes = (atlas as u64).pow(2) * 16 * 4 / 3;
-    let max = limits
-        .max_storage_buffer_binding_size
-        .min(limits.max_buffer_size);
+    let max = super::max_buffer_binding(ctx);
     if bytes > max {
         return Err(fail(format!(
             "--atlas-size {atlas}: its synthesis needs about {} MiB in one buffer, the device allows {} MiB; give a smaller --atlas-size (at most about {})",
