@@ -496,12 +496,14 @@ fn advect_cli() {
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(image::open(&gif).is_ok());
-    for (args, expect) in [
-        (vec!["--flow", "vortex", "--dt", "0"], "time step"),
-        (vec!["--flow", "vortex", "--dt", "-1"], "time step"),
-        (vec!["--flow", "uniform:nan,1"], "finite"),
-        (vec!["--flow", "swirly"], "unknown flow"),
-        (vec!["--flow", "image:missing.png"], "missing.png"),
+    // Exit 2: a malformed command line (clap's usage errors); exit 1: a run that fails,
+    // as for a missing file named in `--field image:FILE`.
+    for (args, expect, code) in [
+        (vec!["--flow", "vortex", "--dt", "0"], "time step", 1),
+        (vec!["--flow", "vortex", "--dt", "-1"], "time step", 1),
+        (vec!["--flow", "uniform:nan,1"], "finite", 2),
+        (vec!["--flow", "swirly"], "unknown flow", 2),
+        (vec!["--flow", "image:missing.png"], "missing.png", 1),
     ] {
         let mut a = vec![
             "advect",
@@ -517,7 +519,7 @@ fn advect_cli() {
         a.extend(args.iter().copied());
         let o = run(&a);
         let stderr = String::from_utf8_lossy(&o.stderr);
-        assert!(!o.status.success(), "{args:?} succeeded");
+        assert_eq!(o.status.code(), Some(code), "{args:?}: {stderr}");
         assert!(stderr.contains(expect), "{args:?}: {stderr}");
         assert!(!stderr.contains("panicked"), "{stderr}");
         assert!(!out.exists(), "{args:?} left {} behind", out.display());
@@ -528,6 +530,7 @@ fn advect_cli() {
         ("tiny.gif", "2", "at least 5x5"),
         ("tiny", "4x16", "at least 5x5"),
         ("frames.txt", "32", "without an extension"),
+        ("no/such/frames", "32", "does not exist"),
     ] {
         let path = dir.path(out);
         let o = run(&[
@@ -558,6 +561,17 @@ fn advect_cli() {
         .collect();
     left.sort();
     assert_eq!(left, ["anim.png", "bunny.gif", "frames"]);
+    // eval reads `--flow image:FILE` when it runs, too.
+    let o = run(&[
+        "eval",
+        "assets/gravel.png",
+        frames.to_str().unwrap(),
+        "--flow",
+        "image:missing.png",
+    ]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("missing.png"), "{stderr}");
 }
 
 fn png_dims(path: &std::path::Path) -> (u32, u32) {

@@ -533,7 +533,7 @@ fn bad_inputs_fail_cleanly() {
                 "16",
             ],
             1,
-            "cannot write",
+            "does not take new files",
         );
     }
 

@@ -35,7 +35,7 @@ pub struct AdvectArgs {
 
     /// The flow (see --help)
     #[arg(long, value_name = "SPEC", value_parser = parse_flow, long_help = FLOW_HELP)]
-    pub flow: Flow,
+    pub flow: FlowArg,
 
     /// Frames to advect after the first
     #[arg(long, default_value_t = 100, value_parser = clap::value_parser!(u32).range(1..=100_000))]
@@ -100,8 +100,29 @@ pub struct AdvectArgs {
     pub tile: TileArgs,
 }
 
-fn parse_flow(s: &str) -> Result<Flow, String> {
-    s.parse()
+/// A `--flow` as given: presets are parsed at once (a typo is a usage error), an
+/// `image:FILE` is only read when the command runs, so a missing or bad file is an
+/// error of the run (exit 1) like `--field image:FILE`, not a usage error.
+#[derive(Clone, Debug)]
+pub enum FlowArg {
+    Preset(Flow),
+    File(PathBuf),
+}
+
+impl FlowArg {
+    pub fn load(&self) -> CliResult<Flow> {
+        match self {
+            FlowArg::Preset(flow) => Ok(flow.clone()),
+            FlowArg::File(path) => Ok(Flow::load(path)?),
+        }
+    }
+}
+
+pub fn parse_flow(s: &str) -> Result<FlowArg, String> {
+    match s.strip_prefix("image:") {
+        Some(path) if !path.is_empty() => Ok(FlowArg::File(PathBuf::from(path))),
+        _ => s.parse().map(FlowArg::Preset),
+    }
 }
 
 /// Frames of a folder output go to a hidden staging folder next to it first; they
@@ -136,12 +157,20 @@ impl Staging {
             Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
             _ => PathBuf::from("."),
         };
+        // Like file outputs: the folder itself is created, its parent must exist.
+        if !parent.is_dir() {
+            return Err(fail(format!(
+                "cannot write {}: directory {} does not exist; create it first",
+                target.display(),
+                parent.display()
+            )));
+        }
         let dir = parent.join(format!(
             ".{}.partial-{}",
             name.to_string_lossy(),
             std::process::id()
         ));
-        std::fs::create_dir_all(&dir).map_err(|e| {
+        std::fs::create_dir(&dir).map_err(|e| {
             fail(format!(
                 "cannot create the folder {}: {e}",
                 target.display()
@@ -220,7 +249,8 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
         staging = Some(s);
         Sink::Folder(dir)
     };
-    args.flow.validate()?;
+    let flow = args.flow.load()?;
+    flow.validate()?;
     // The temporal figures printed at the end use 5x5 windows: refuse what they cannot
     // measure before any frame is written.
     if args.mesh.is_none() && (args.size[0] < 5 || args.size[1] < 5) {
@@ -305,9 +335,9 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
     let velocity_at = |t: u32| -> CliResult<Vec<[f32; 2]>> {
         match &surface {
             Some(prep) => Ok(texsyn::surface::flow::atlas_velocity(
-                prep, &args.flow, t as f32,
+                prep, &flow, t as f32,
             )?),
-            None => Ok(args.flow.sample(w, h, t as f32)?),
+            None => Ok(flow.sample(w, h, t as f32)?),
         }
     };
     let mut frames: Vec<FloatImage> = Vec::new();

@@ -58,9 +58,9 @@ pub struct EvalArgs {
     /// this flow (same SPEC as `texsyn advect --flow`); reports the flow-warped and plain
     /// frame-to-frame differences, texture energy per --energy-every frames and the
     /// sharpness (high-frequency energy relative to the exemplar's) per frame
-    #[arg(long, value_name = "SPEC", value_parser = |s: &str| s.parse::<texsyn::flow::Flow>(),
+    #[arg(long, value_name = "SPEC", value_parser = super::advect::parse_flow,
           conflicts_with_all = ["coords", "field"])]
-    pub flow: Option<texsyn::flow::Flow>,
+    pub flow: Option<super::advect::FlowArg>,
 
     /// Time step of --flow (velocity * dt per frame)
     #[arg(long, default_value_t = 1.0, requires = "flow")]
@@ -103,7 +103,7 @@ pub fn run(ui: &Ui, args: EvalArgs) -> CliResult<()> {
     }
     let exemplar = texsyn::image_io::load_exemplar(&args.exemplar)?;
     if let Some(flow) = &args.flow {
-        return temporal(ui, &args, &exemplar, flow);
+        return temporal(ui, &args, &exemplar, &flow.load()?);
     }
     // The energy map's path is checked before any work.
     if let Some(path) = &args.energy_map {

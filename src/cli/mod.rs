@@ -92,6 +92,7 @@ pub struct AppearanceArgs {
 
     /// Weight of the feature channel in [0, 100]: 1 gives it as much variance as all
     /// colour channels together; larger values favour structure over colour
+    /// [default with a mask: 1]
     #[arg(long, value_name = "W", requires = "feature_mask", allow_hyphen_values = true,
           value_parser = parse_feature_weight)]
     pub feature_weight: Option<f32>,
@@ -379,7 +380,8 @@ pub fn check_output_dir(path: &Path) -> CliResult<()> {
         }
         Err(e) => {
             return Err(fail(format!(
-                "cannot write {}: {e} (directory {})",
+                "cannot write {}: the directory {} does not take new files ({e}); \
+                 choose a writable folder",
                 path.display(),
                 dir.display()
             )))
