@@ -520,6 +520,36 @@ fn bad_inputs_fail_cleanly() {
         "two outputs",
     );
 
+    // An output that names one of the command's inputs is refused, and the input kept.
+    std::fs::copy(GRAVEL, dir.path("ex.png")).unwrap();
+    let original = std::fs::read(dir.path("ex.png")).unwrap();
+    for args in [
+        &["synth", "ex.png", "-o", "./ex.png", "--size", "16"][..],
+        &[
+            "synth",
+            GRAVEL,
+            "-o",
+            "o.png",
+            "--size",
+            "16",
+            "--also",
+            "ex.png=ex.png",
+        ],
+        &["analyze", "ex.png", "-o", "ex.png"],
+        &["eval", GRAVEL, "ex.png", "--energy-map", "ex.png"],
+        &[
+            "advect", "ex.png", "--flow", "vortex", "--frames", "1", "--size", "16", "-o", "ex.png",
+        ],
+    ] {
+        fails(&dir, args, 1, "an input");
+        assert_eq!(
+            std::fs::read(dir.path("ex.png")).unwrap(),
+            original,
+            "{args:?}"
+        );
+    }
+    std::fs::remove_file(dir.path("ex.png")).unwrap();
+
     // A folder that exists but cannot be written to (/proc refuses new files, even to root).
     if Path::new("/proc").is_dir() {
         fails(

@@ -231,6 +231,18 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
         .extension()
         .and_then(|e| e.to_str())
         .map(|e| e.to_ascii_lowercase());
+    let mut inputs: Vec<(&str, &Path)> = vec![("exemplar", &args.exemplar)];
+    if let FlowArg::File(f) = &args.flow {
+        inputs.push(("flow file", f));
+    }
+    inputs.extend(args.mesh.as_deref().map(|m| ("mesh", m)));
+    inputs.extend(
+        args.field
+            .as_ref()
+            .and_then(|f| f.file())
+            .map(|f| ("--field file", f)),
+    );
+    super::check_outputs_not_inputs(&[&args.output], &inputs)?;
     let mut staging = None;
     let mut sink = if ext.as_deref() == Some("gif") {
         super::check_output_dir(&args.output)?;

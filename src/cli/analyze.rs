@@ -49,6 +49,14 @@ pub struct AnalyzeArgs {
 
 pub fn run(ui: &Ui, args: AnalyzeArgs) -> CliResult<()> {
     check_output_dir(&args.output)?;
+    let mut inputs: Vec<(&str, &std::path::Path)> = vec![("exemplar", &args.exemplar)];
+    inputs.extend(
+        args.appearance
+            .feature_mask
+            .as_deref()
+            .map(|m| ("feature mask", m)),
+    );
+    super::check_outputs_not_inputs(&[&args.output], &inputs)?;
     let mut options = AnalysisOptions {
         k: args.k,
         tileable: args.tile.get(),

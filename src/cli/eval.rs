@@ -109,6 +109,19 @@ pub fn run(ui: &Ui, args: EvalArgs) -> CliResult<()> {
     if let Some(path) = &args.energy_map {
         super::check_output_dir(path)?;
         super::synth::check_save_extension(path)?;
+        let mut inputs: Vec<(&str, &std::path::Path)> = vec![
+            ("exemplar", &args.exemplar),
+            ("image evaluated", &args.image),
+        ];
+        inputs.extend(args.coords.as_deref().map(|c| ("coordinate map", c)));
+        inputs.extend(args.feature_mask.as_deref().map(|m| ("feature mask", m)));
+        inputs.extend(
+            args.field
+                .as_ref()
+                .and_then(|f| f.file())
+                .map(|f| ("--field file", f)),
+        );
+        super::check_outputs_not_inputs(&[path], &inputs)?;
     }
     let output = load_image(&args.image)?;
 

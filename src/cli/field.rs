@@ -127,6 +127,14 @@ pub fn parse_field(s: &str) -> Result<FieldSpec, String> {
 }
 
 impl FieldSpec {
+    /// The file an `image:` or `exr:` field is read from.
+    pub fn file(&self) -> Option<&std::path::Path> {
+        match self {
+            FieldSpec::Image(p) | FieldSpec::Exr(p) => Some(p),
+            _ => None,
+        }
+    }
+
     /// The field for an output window `origin`, `width` x `height`: presets default to
     /// the window's centre; maps must have the window's size.
     pub fn resolve(&self, origin: [i32; 2], width: u32, height: u32) -> CliResult<Field> {

@@ -407,6 +407,42 @@ pub fn check_distinct_outputs(paths: &[&Path]) -> CliResult<()> {
     Ok(())
 }
 
+/// Refuses an output that names one of the command's own inputs: the output would
+/// silently replace it (an exemplar, a coordinate map, a mesh). Inputs are labelled for
+/// the message, e.g. `("exemplar", path)`. An output that does not exist yet cannot be
+/// an input; existing files are compared as files (links and `./x` vs `x` included).
+pub fn check_outputs_not_inputs(outputs: &[&Path], inputs: &[(&str, &Path)]) -> CliResult<()> {
+    for out in outputs {
+        let Ok(out_meta) = std::fs::metadata(out) else {
+            continue;
+        };
+        for (what, input) in inputs {
+            let Ok(in_meta) = std::fs::metadata(input) else {
+                continue;
+            };
+            if same_file(out, &out_meta, input, &in_meta) {
+                return Err(fail(format!(
+                    "{} is also the {what}, an input: writing it would replace the input; \
+                     give the output another name",
+                    out.display()
+                )));
+            }
+        }
+    }
+    Ok(())
+}
+
+#[cfg(unix)]
+fn same_file(_: &Path, a: &std::fs::Metadata, _: &Path, b: &std::fs::Metadata) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    a.dev() == b.dev() && a.ino() == b.ino()
+}
+
+#[cfg(not(unix))]
+fn same_file(a: &Path, _: &std::fs::Metadata, b: &Path, _: &std::fs::Metadata) -> bool {
+    matches!((std::fs::canonicalize(a), std::fs::canonicalize(b)), (Ok(x), Ok(y)) if x == y)
+}
+
 /// `12.3 ms`, `1.23 s`, `850 us`.
 pub fn fmt_duration(d: Duration) -> String {
     let s = d.as_secs_f64();

@@ -166,6 +166,16 @@ pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
     .map(|p| p.as_path())
     .collect();
     super::check_distinct_outputs(&outputs)?;
+    let mut inputs: Vec<(&str, &std::path::Path)> =
+        vec![("mesh", &args.mesh), ("exemplar", &args.exemplar)];
+    for (what, p) in [
+        ("normal map", &args.normal_map),
+        ("roughness map", &args.roughness_map),
+        ("occlusion map", &args.occlusion_map),
+    ] {
+        inputs.extend(p.as_deref().map(|p| (what, p)));
+    }
+    super::check_outputs_not_inputs(&outputs, &inputs)?;
     if args.output.extension().and_then(|e| e.to_str()) != Some("glb") {
         return Err(fail(format!(
             "{}: the output is a binary glTF; name it *.glb",

@@ -251,6 +251,25 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
     outputs.extend(args.coords_out.as_deref());
     outputs.extend(args.also.iter().map(|a| a.output.as_path()));
     super::check_distinct_outputs(&outputs)?;
+    let mut inputs: Vec<(&str, &std::path::Path)> = vec![("exemplar", &args.exemplar)];
+    inputs.extend(
+        args.also
+            .iter()
+            .map(|a| ("input of --also", a.input.as_path())),
+    );
+    inputs.extend(
+        args.field
+            .as_ref()
+            .and_then(|f| f.file())
+            .map(|f| ("--field file", f)),
+    );
+    inputs.extend(
+        args.appearance
+            .feature_mask
+            .as_deref()
+            .map(|m| ("feature mask", m)),
+    );
+    super::check_outputs_not_inputs(&outputs, &inputs)?;
     let [width, height] = args.size;
     // What the output file holds (larger than the synthesis with --magnify).
     let mut out_size = (width, height);
