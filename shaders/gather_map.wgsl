@@ -1,7 +1,7 @@
 // Material-set gather (mirror: src/passes/gather_map.rs): an extra exemplar-aligned map
 // (bound as the colours) read at the finest level's coordinates, like the colour
 // gather (nearest for integer coordinates, bilinear for continuous ones). A tangent-
-// space normal map (map_kind 1) has its x, y rotated with the texture (rotate_normal).
+// space normal map (map_kind 1: green down, 2: green up) has its x, y rotated with the texture (rotate_normal).
 #include "shared/common.wgsl"
 #include "shared/aniso.wgsl"
 
@@ -32,8 +32,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         let s = g.x * g.y * map_u(i0) + f.x * g.y * map_u(vec2<i32>(i1.x, i0.y))
             + g.x * f.y * map_u(vec2<i32>(i0.x, i1.y)) + f.x * f.y * map_u(i1);
         v = (s + vec4<i32>(32768)) >> vec4<u32>(16u);
-        if ((params.map_kind | u32(opaque)) == 1u) {
-            v = rotate_normal(v, jac[idx]);
+        if ((params.map_kind | u32(opaque)) != 0u) {
+            v = rotate_normal(v, jac[idx], params.map_kind == 2u);
         }
     }
     textureStore(out_color, p, vec4<f32>(v) / 255.0);

@@ -4,7 +4,7 @@
 // Output pixel o sits at x = (o + 1/2) / F - 1/2 in synthesized pixels; it blends the
 // four nearest synthesized pixels q with bilinear weights, each predicting
 // E_H[F (S[q] + J(q) (x - q))]. Integer arithmetic: 2F(x - q) is an integer. Material
-// sets: a tangent-space normal map (map_kind 1) has each prediction rotated by its J.
+// sets: a tangent-space normal map (map_kind 1 or 2) has each prediction rotated by its J.
 #include "shared/common.wgsl"
 #include "shared/aniso.wgsl"
 
@@ -64,8 +64,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             let w = select(den - r.x, r.x, dx == 1) * select(den - r.y, r.y, dy == 1);
             var c = hi_bilinear(big * s + off);
             // Normal maps rotate with the texture, by each prediction's own J.
-            if ((params.coord_frac | u32(opaque)) != 0u && (params.map_kind | u32(opaque)) == 1u) {
-                c = rotate_normal(c, jac[idx]);
+            if ((params.coord_frac | u32(opaque)) != 0u && (params.map_kind | u32(opaque)) != 0u) {
+                c = rotate_normal(c, jac[idx], params.map_kind == 2u);
             }
             acc += w * c;
         }

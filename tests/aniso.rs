@@ -233,10 +233,18 @@ fn material_maps_follow_the_coordinates_and_rotate_normals() {
         ExtraMap {
             pixels: height.clone(),
             normal: false,
+            green_down: false,
+        },
+        // The same +x normals, green up (glTF) and green down (DirectX).
+        ExtraMap {
+            pixels: normal_x.clone(),
+            normal: true,
+            green_down: false,
         },
         ExtraMap {
             pixels: normal_x,
             normal: true,
+            green_down: true,
         },
     ];
     for field in [
@@ -271,7 +279,7 @@ fn material_maps_follow_the_coordinates_and_rotate_normals() {
         let gp = schedule.last().unwrap().params;
         for (m, map) in maps.iter().enumerate() {
             let p = texsyn::passes::common::PassParams {
-                map_kind: map.normal as u32,
+                map_kind: map.map_kind(),
                 ..gp
             };
             let cpu = texsyn::passes::gather_map::run(&p, &coords, &jac, &map.pixels);
@@ -284,8 +292,12 @@ fn material_maps_follow_the_coordinates_and_rotate_normals() {
             }
         }
         if let Some(Field::Constant { .. }) = field {
-            // Rotated by 90 degrees: exemplar +x normals point along screen +y.
+            // Rotated by 90 degrees: exemplar +x normals point along screen +y (down the
+            // image): green 0 where green is up, 255 where it is down.
             for v in &out[1] {
+                assert!(v[0].abs_diff(128) <= 2 && v[1] <= 2, "{v:?}");
+            }
+            for v in &out[2] {
                 assert!(v[0].abs_diff(128) <= 2 && v[1] >= 253, "{v:?}");
             }
         }
@@ -294,6 +306,7 @@ fn material_maps_follow_the_coordinates_and_rotate_normals() {
     let bad = [ExtraMap {
         pixels: vec![[0; 4]; 10],
         normal: false,
+        green_down: false,
     }];
     let p = SynthParams {
         width: 8,
@@ -361,10 +374,12 @@ fn magnification_matches_cpu() {
             ExtraMap {
                 pixels: map_a.clone(),
                 normal: false,
+                green_down: false,
             },
             ExtraMap {
                 pixels: map_n.clone(),
                 normal: true,
+                green_down: factor == 4,
             },
         ];
         let params = SynthParams {
@@ -397,11 +412,11 @@ fn magnification_matches_cpu() {
         let mut coords = vec![[0i32; 2]; plan.coord_count as usize];
         let jac = plan.jacobians();
         texsyn::passes::run_cpu(&a, &schedule, &mut coords, &jac);
-        for (i, (src, normal)) in [(&map_a, false), (&map_n, true)].into_iter().enumerate() {
+        for (i, src) in [&map_a, &map_n].into_iter().enumerate() {
             let p = texsyn::passes::common::PassParams {
                 magnify: factor,
                 hi_size: [128, 128],
-                map_kind: normal as u32,
+                map_kind: maps[i].map_kind(),
                 ..schedule.last().unwrap().params
             };
             let cpu = texsyn::passes::magnify::run(&p, &coords, &jac, src);
@@ -432,7 +447,8 @@ fn magnification_matches_cpu() {
                     .iter()
                     .map(|m| ExtraMap {
                         pixels: m.pixels[..100].to_vec(),
-                        normal: false
+                        normal: false,
+                        green_down: false,
                     })
                     .collect::<Vec<_>>()
             )

@@ -94,9 +94,12 @@ fn isqrt(x: i32) -> i32 {
 
 // An RGBA8 tangent-space normal (x, y in the first two channels, 0..255) rotated with
 // the texture: by the rotation part of J^-1 (2x2 polar decomposition, integer
-// arithmetic; mirror: crate::passes::gather_map::rotate_normal).
-fn rotate_normal(v: vec4<i32>, j: vec4<i32>) -> vec4<i32> {
-    let n = 2 * v.xy - vec2<i32>(255);
+// arithmetic; mirror: crate::passes::gather_map::rotate_normal). J acts on image axes
+// (y down): a map whose green is y up (OpenGL, glTF; `green_up`) has y flipped before
+// and after, which turns the rotation the other way.
+fn rotate_normal(v: vec4<i32>, j: vec4<i32>, green_up: bool) -> vec4<i32> {
+    let flip = vec2<i32>(1, select(1, -1, green_up));
+    let n = (2 * v.xy - vec2<i32>(255)) * flip;
     var r: vec2<i32>;
     if (j.x * j.w - j.y * j.z >= 0) {
         // J's rotation part is [[a, -b], [b, a]] / L; J^-1's is its transpose.
@@ -111,5 +114,5 @@ fn rotate_normal(v: vec4<i32>, j: vec4<i32>) -> vec4<i32> {
         let l = max(isqrt(a * a + b * b), 1);
         r = vec2<i32>(a * n.x + b * n.y, b * n.x - a * n.y) / l;
     }
-    return vec4<i32>(clamp((r + vec2<i32>(256)) >> vec2<u32>(1u), vec2<i32>(0), vec2<i32>(255)), v.zw);
+    return vec4<i32>(clamp((r * flip + vec2<i32>(256)) >> vec2<u32>(1u), vec2<i32>(0), vec2<i32>(255)), v.zw);
 }

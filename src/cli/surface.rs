@@ -85,9 +85,15 @@ pub struct SurfaceArgs {
     pub magnify: Option<u32>,
 
     /// Tangent-space normal map aligned with the exemplar, embedded as the material's
-    /// normal texture (rotated with the field)
+    /// normal texture (rotated with the field). Green is y up (OpenGL, glTF, Blender),
+    /// unless --normal-green-down
     #[arg(long, value_name = "IMAGE")]
     pub normal_map: Option<PathBuf>,
+
+    /// The --normal-map has green = y down (DirectX convention); the embedded texture is
+    /// converted to glTF's green up
+    #[arg(long, requires = "normal_map")]
+    pub normal_green_down: bool,
 
     /// Roughness map aligned with the exemplar (grey; red channel used), embedded as the
     /// material's metallic-roughness texture (roughness in green, metallic 0)
@@ -339,6 +345,7 @@ pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
         .map(|(n, normal, _)| ExtraMap {
             pixels: n.colors.clone(),
             normal: *normal,
+            green_down: *normal && args.normal_green_down,
         })
         .collect();
     let t = Instant::now();
@@ -381,7 +388,15 @@ pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
                 m.into_iter().flat_map(pack).collect(),
             )?))
         };
-    let normal = next_map(material_maps[0].is_some(), |p| p)?;
+    // glTF normal textures have green up: a green-down map (rotated in its own
+    // convention) has its green flipped.
+    let normal = if args.normal_green_down {
+        next_map(material_maps[0].is_some(), |p| {
+            [p[0], 255 - p[1], p[2], p[3]]
+        })?
+    } else {
+        next_map(material_maps[0].is_some(), |p| p)?
+    };
     // glTF packs roughness in green (metallic in blue, 0 here), occlusion in red.
     let metallic_roughness = next_map(material_maps[1].is_some(), |p| [0, p[0], 0, 255])?;
     let occlusion = next_map(material_maps[2].is_some(), |p| [p[0], p[0], p[0], 255])?;

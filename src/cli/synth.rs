@@ -91,9 +91,10 @@ pub struct SynthArgs {
 
     /// Material sets: resynthesize an exemplar-aligned map (normal, height, roughness...)
     /// through the same coordinates: IN=OUT, repeatable. `normal:IN=OUT` (or an IN whose
-    /// file name contains "normal") marks a tangent-space normal map, whose x, y rotate
-    /// with the texture along --field; `plain:IN=OUT` forces a plain map
-    #[arg(long, value_name = "[normal:|plain:]IN=OUT", value_parser = parse_also)]
+    /// file name contains "normal") marks a tangent-space normal map with green = y up
+    /// (OpenGL, glTF, Blender), `normal-dx:IN=OUT` one with green = y down (DirectX);
+    /// their x, y rotate with the texture along --field. `plain:IN=OUT` forces a plain map
+    #[arg(long, value_name = "[normal:|normal-dx:|plain:]IN=OUT", value_parser = parse_also)]
     pub also: Vec<AlsoMap>,
 
     /// Anisometric synthesis along a Jacobian field (see the long help: --help)
@@ -128,6 +129,8 @@ pub struct AlsoMap {
     pub input: PathBuf,
     pub output: PathBuf,
     pub normal: bool,
+    /// A normal map with green = y down (DirectX), `normal-dx:`.
+    pub green_down: bool,
 }
 
 pub fn parse_magnify(s: &str) -> Result<u32, String> {
@@ -138,12 +141,15 @@ pub fn parse_magnify(s: &str) -> Result<u32, String> {
 }
 
 fn parse_also(s: &str) -> Result<AlsoMap, String> {
-    let (kind, rest) = if let Some(r) = s.strip_prefix("normal:") {
-        (Some(true), r)
+    // normal: green up (OpenGL, glTF, Blender); normal-dx: green down (DirectX).
+    let (kind, green_down, rest) = if let Some(r) = s.strip_prefix("normal:") {
+        (Some(true), false, r)
+    } else if let Some(r) = s.strip_prefix("normal-dx:") {
+        (Some(true), true, r)
     } else if let Some(r) = s.strip_prefix("plain:") {
-        (Some(false), r)
+        (Some(false), false, r)
     } else {
-        (None, s)
+        (None, false, s)
     };
     let (input, output) = rest
         .split_once('=')
@@ -161,6 +167,7 @@ fn parse_also(s: &str) -> Result<AlsoMap, String> {
         input,
         output: output.into(),
         normal,
+        green_down,
     })
 }
 
@@ -400,6 +407,7 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
             texsyn::gpu::synth::ExtraMap {
                 pixels,
                 normal: a.normal,
+                green_down: a.green_down,
             },
             ex.channels,
         ));

@@ -73,7 +73,8 @@ impl GpuSynthesis {
 pub(crate) struct MapTarget<'a> {
     colors: &'a wgpu::Buffer,
     view: &'a wgpu::TextureView,
-    normal: bool,
+    /// `PassParams::map_kind`: 0 plain, 1 normals with green down, 2 with green up.
+    map_kind: u32,
     /// > 1: the magnify pass with a high-resolution exemplar of `hi_size`.
     magnify: u32,
     hi_size: [i32; 2],
@@ -87,6 +88,20 @@ pub struct ExtraMap {
     pub pixels: Vec<[u8; 4]>,
     /// Tangent-space normals (x, y in red, green): rotated with the texture along a field.
     pub normal: bool,
+    /// For normal maps: green is y *down* the image (the DirectX convention). `false`
+    /// (the default): green is y up, the convention of OpenGL, glTF and Blender.
+    pub green_down: bool,
+}
+
+impl ExtraMap {
+    /// `PassParams::map_kind` of this map.
+    pub fn map_kind(&self) -> u32 {
+        match (self.normal, self.green_down) {
+            (false, _) => 0,
+            (true, true) => 1,
+            (true, false) => 2,
+        }
+    }
 }
 
 /// A magnified synthesis with its material sets, on the host
@@ -535,7 +550,7 @@ impl GpuSynthesizer {
             .iter()
             .map(|d| d.params)
             .chain(maps.iter().map(|m| PassParams {
-                map_kind: m.normal as u32,
+                map_kind: m.map_kind,
                 magnify: m.magnify.max(1),
                 hi_size: m.hi_size,
                 ..gather_params
@@ -876,10 +891,10 @@ impl GpuSynthesizer {
         let texture = ctx.scoped(|| self.output_texture(ctx, w, h))?;
         let view = texture.create_view(&Default::default());
         // Sources of the map passes: the high-resolution colours first when magnifying.
-        let sources: Vec<(&[[u8; 4]], bool)> = magnify
-            .map(|(hi, ..)| (hi, false))
+        let sources: Vec<(&[[u8; 4]], u32)> = magnify
+            .map(|(hi, ..)| (hi, 0))
             .into_iter()
-            .chain(maps.iter().map(|m| (&m.pixels[..], m.normal)))
+            .chain(maps.iter().map(|m| (&m.pixels[..], m.map_kind())))
             .collect();
         let (map_buffers, map_textures) = ctx.scoped(|| {
             let buffers: Vec<wgpu::Buffer> = sources
@@ -906,10 +921,10 @@ impl GpuSynthesizer {
         let targets: Vec<MapTarget> = sources
             .iter()
             .enumerate()
-            .map(|(i, (_, normal))| MapTarget {
+            .map(|(i, (_, map_kind))| MapTarget {
                 colors: &map_buffers[i],
                 view: &map_views[i],
-                normal: *normal,
+                map_kind: *map_kind,
                 magnify: f,
                 hi_size: if f > 1 {
                     [map_w as i32, map_h as i32]
@@ -1065,7 +1080,7 @@ impl GpuSynthesizer {
             let target = MapTarget {
                 colors: &hi_buffer,
                 view: &big_view,
-                normal: false,
+                map_kind: 0,
                 magnify: factor,
                 hi_size: [hi_width as i32, hi_height as i32],
             };

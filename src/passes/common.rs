@@ -57,8 +57,9 @@ pub struct PassParams {
     pub coord_frac: u32,
     /// 1: the region is one period of a tileable output and wraps around.
     pub periodic: u32,
-    /// Map gather only: 1 if the map holds tangent-space normals (rotated with the
-    /// field), 0 otherwise.
+    /// Map gather only: 0 for a plain map; tangent-space normals (rotated with the
+    /// field): 1 with green = y down the image (DirectX), 2 with green = y up (OpenGL,
+    /// glTF).
     pub map_kind: u32,
     /// Magnify pass only: size of the high-resolution exemplar, and the factor.
     pub hi_size: [i32; 2],

@@ -16,9 +16,12 @@ fn isqrt(x: i32) -> i32 {
     r
 }
 
-/// Rotates an RGBA8 tangent-space normal by the rotation part of `J^-1`.
-pub fn rotate_normal(v: [i32; 4], j: [i32; 4]) -> [i32; 4] {
-    let n = [2 * v[0] - 255, 2 * v[1] - 255];
+/// Rotates an RGBA8 tangent-space normal by the rotation part of `J^-1`. `J` acts on
+/// image axes (y down); a map whose green is y up (OpenGL, glTF: `green_up`) has y
+/// flipped before and after.
+pub fn rotate_normal(v: [i32; 4], j: [i32; 4], green_up: bool) -> [i32; 4] {
+    let flip = if green_up { -1 } else { 1 };
+    let n = [2 * v[0] - 255, (2 * v[1] - 255) * flip];
     let r = if j[0] * j[3] - j[1] * j[2] >= 0 {
         let (a, b) = (j[0] + j[3], j[2] - j[1]);
         let l = isqrt(a * a + b * b).max(1);
@@ -30,7 +33,7 @@ pub fn rotate_normal(v: [i32; 4], j: [i32; 4]) -> [i32; 4] {
     };
     [
         ((r[0] + 256) >> 1).clamp(0, 255),
-        ((r[1] + 256) >> 1).clamp(0, 255),
+        ((r[1] * flip + 256) >> 1).clamp(0, 255),
         v[2],
         v[3],
     ]
@@ -49,8 +52,8 @@ pub fn run(p: &PassParams, coords: &[[i32; 2]], jac: &[[i32; 4]], map: &[[u8; 4]
                 at(c)
             } else {
                 let v = bilinear_rgba(map, p.ex_size, p.tileable != 0, c);
-                if p.map_kind == 1 {
-                    rotate_normal(v, jac[idx])
+                if p.map_kind != 0 {
+                    rotate_normal(v, jac[idx], p.map_kind == 2)
                 } else {
                     v
                 }

@@ -4,7 +4,7 @@
 //! in synthesized pixels and blends, with bilinear weights, the predictions
 //! `E_H[F (S[q] + J(q) (x - q))]` of the four nearest synthesized pixels `q`. Integer
 //! arithmetic throughout (`2F (x - q)` is an integer; positions in 1/256 texel). Normal
-//! maps (`map_kind` 1) have each prediction rotated by its own `J` (material sets).
+//! maps (`map_kind` 1 or 2) have each prediction rotated by its own `J` (material sets).
 
 use super::common::{bilinear_rgba, region_index, PassParams, COORD_FRAC};
 
@@ -48,8 +48,8 @@ pub fn run(p: &PassParams, coords: &[[i32; 2]], jac: &[[i32; 4]], hi: &[[u8; 4]]
                     let wx = if dx == 1 { r[0] } else { den - r[0] };
                     let wy = if dy == 1 { r[1] } else { den - r[1] };
                     let mut c = hi_bilinear(p, hi, [big * s[0] + off[0], big * s[1] + off[1]]);
-                    if p.coord_frac != 0 && p.map_kind == 1 {
-                        c = super::gather_map::rotate_normal(c, jac[idx]);
+                    if p.coord_frac != 0 && p.map_kind != 0 {
+                        c = super::gather_map::rotate_normal(c, jac[idx], p.map_kind == 2);
                     }
                     for ch in 0..4 {
                         acc[ch] += wx * wy * c[ch];
