@@ -519,8 +519,11 @@ fn cli_feature_mask_and_appearance() {
     write_mask_png(&mask, 128, 128, |_, y| y % 16 < 2);
     let small = dir.path("small.png");
     write_mask_png(&small, 64, 64, |_, y| y % 16 < 2);
+    let blank = dir.path("blank.png");
+    write_mask_png(&blank, 128, 128, |_, _| false);
     let mask_s = mask.to_str().unwrap();
     let small_s = small.to_str().unwrap();
+    let blank_s = blank.to_str().unwrap();
 
     // Errors: exit code, a clear message, no output file.
     for cmd in [
@@ -542,6 +545,10 @@ fn cli_feature_mask_and_appearance() {
         let mut a = with(&["--feature-mask"]);
         a.push(small_s.to_string());
         run(a, 1, &["64x64", "exemplar is 128x128", "exemplar's size"]);
+        // A blank mask would silently change nothing.
+        let mut a = with(&["--feature-mask"]);
+        a.push(blank_s.to_string());
+        run(a, 1, &["no pixel is a feature"]);
         for w in ["-1", "nan", "inf", "abc"] {
             let mut a = with(&["--feature-weight", w, "--feature-mask"]);
             a.push(mask_s.to_string());
@@ -701,10 +708,10 @@ fn cli_feature_mask_and_appearance() {
             "--energy-map",
             "m2.png",
             "--energy-scale",
-            "0",
+            "-1",
         ],
-        1,
-        &["--energy-scale"],
+        2,
+        &["--energy-scale", "positive"],
     );
     assert!(!dir.path("m2.png").exists());
 }

@@ -39,7 +39,8 @@ pub struct AnalyzeArgs {
     pub appearance: AppearanceArgs,
 
     /// Similarity-set members lie at least this many pixels from the pixel itself
-    #[arg(long, value_name = "R", default_value_t = AnalysisOptions::default().exclusion_radius)]
+    #[arg(long, value_name = "R", default_value_t = AnalysisOptions::default().exclusion_radius,
+          allow_hyphen_values = true)]
     pub exclusion: u32,
 
     /// Worker threads (0 = all cores)

@@ -11,9 +11,9 @@ use texsyn::gpu::synth::GpuSynthesizer;
 use texsyn::gpu::GpuContext;
 use texsyn::passes::SynthParams;
 
-use super::synth::{cli_hint, read_source, Source};
+use super::synth::{read_source, with_hint, Source};
 use super::{
-    channels_name, check_output_size, fail, fmt_duration, parse_sizes, CliResult, Sizes, Ui,
+    channels_name, check_output_size_hint, fail, fmt_duration, parse_sizes, CliResult, Sizes, Ui,
 };
 
 /// Exemplars up to this many pixels are analysed several times and the median reported.
@@ -114,7 +114,24 @@ fn time_runs(
     Ok(stats(times))
 }
 
+/// What to do about a size the device cannot synthesize in one piece.
+const BENCH_HINT: &str = "benchmark smaller sizes (--sizes)";
+
 pub fn run(ui: &Ui, args: BenchArgs) -> CliResult<()> {
+    // A field from a file has one size: check it against --sizes before any work.
+    if let Some(spec) = args.field.as_ref().filter(|f| f.file().is_some()) {
+        match args.sizes.0.as_slice() {
+            [[w, h]] => {
+                spec.resolve([0, 0], *w, *h)?;
+            }
+            _ => {
+                return Err(fail(format!(
+                    "--field {}: a field from a file has one size; give that size alone in --sizes",
+                    spec.file().unwrap_or(std::path::Path::new("")).display()
+                )))
+            }
+        }
+    }
     let t = Instant::now();
     let source = read_source(&args.exemplar, None, None)?;
     let read_time = t.elapsed();
@@ -214,15 +231,17 @@ pub fn run(ui: &Ui, args: BenchArgs) -> CliResult<()> {
             },
             ..SynthParams::default()
         };
-        let row = check_output_size(&ctx, w, h).and_then(|()| {
+        let row = check_output_size_hint(&ctx, w, h, BENCH_HINT).and_then(|()| {
             let gpu = time_runs(args.warmup, args.runs, || {
-                synthesizer.synthesize(&ctx, &params).map_err(cli_hint)?;
+                synthesizer
+                    .synthesize(&ctx, &params)
+                    .map_err(|e| with_hint(e, BENCH_HINT))?;
                 ctx.take_uncaptured_errors()
             })?;
             let whole = time_runs(args.warmup.min(1), args.runs, || {
                 synthesizer
                     .synthesize_to_host(&ctx, &params)
-                    .map_err(cli_hint)?;
+                    .map_err(|e| with_hint(e, BENCH_HINT))?;
                 ctx.take_uncaptured_errors()
             })?;
             Ok((gpu, whole))
@@ -244,7 +263,7 @@ pub fn run(ui: &Ui, args: BenchArgs) -> CliResult<()> {
             }
         };
         ui.out(line)?;
-        if args.per_pass && check_output_size(&ctx, w, h).is_ok() {
+        if args.per_pass && check_output_size_hint(&ctx, w, h, BENCH_HINT).is_ok() {
             per_pass_table(ui, &ctx, &synthesizer, &params, &args)?;
         }
     }
@@ -273,7 +292,9 @@ fn per_pass_table(
             i + 1,
             args.warmup + args.runs
         ));
-        let r = synthesizer.profile(ctx, params).map_err(cli_hint)?;
+        let r = synthesizer
+            .profile(ctx, params)
+            .map_err(|e| with_hint(e, BENCH_HINT))?;
         ctx.take_uncaptured_errors()?;
         if i >= args.warmup {
             runs.push(r);

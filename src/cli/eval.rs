@@ -50,7 +50,8 @@ pub struct EvalArgs {
     pub field: Option<super::field::FieldSpec>,
 
     /// Relative Frobenius tolerance of the Jacobian figures
-    #[arg(long, value_name = "T", default_value_t = 0.15)]
+    #[arg(long, value_name = "T", default_value_t = 0.15, allow_hyphen_values = true,
+          value_parser = parse_positive::<f64>)]
     pub tolerance: f64,
 
     /// Temporal coherence of an advected sequence: IMAGE is then a folder of frames
@@ -89,9 +90,28 @@ pub struct EvalArgs {
         long,
         value_name = "E",
         default_value_t = 0.02,
-        requires = "energy_map"
+        requires = "energy_map",
+        allow_hyphen_values = true,
+        value_parser = parse_positive::<f32>
     )]
     pub energy_scale: f32,
+}
+
+/// A positive, finite number (a usage error otherwise, like any malformed option).
+fn parse_positive<T>(s: &str) -> Result<T, String>
+where
+    T: std::str::FromStr + Into<f64> + Copy,
+{
+    let v: T = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("\"{s}\" is not a number"))?;
+    let f: f64 = v.into();
+    if f > 0.0 && f.is_finite() {
+        Ok(v)
+    } else {
+        Err(format!("{s}: give a positive number"))
+    }
 }
 
 pub fn run(ui: &Ui, args: EvalArgs) -> CliResult<()> {

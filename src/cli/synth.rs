@@ -222,6 +222,11 @@ pub fn magnify_source(source: Source, f: u32) -> CliResult<(Source, HiRes)> {
 
 /// The library's size errors name its API (`SynthParams::origin`); name the option.
 pub fn cli_hint(e: texsyn::Error) -> texsyn::Error {
+    with_hint(e, WINDOW_HINT)
+}
+
+/// `e` with `hint` if it is the library's output-too-large error.
+pub fn with_hint(e: texsyn::Error, hint: &'static str) -> texsyn::Error {
     match e {
         texsyn::Error::TooLarge {
             what: "output",
@@ -234,7 +239,7 @@ pub fn cli_hint(e: texsyn::Error) -> texsyn::Error {
             width,
             height,
             limit,
-            hint: WINDOW_HINT,
+            hint,
         },
         other => other,
     }
@@ -422,6 +427,7 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
             .synthesize_magnified(&ctx, &params, hi, *hw, *hh, *f)
             .map_err(cli_hint)?;
         ctx.take_uncaptured_errors()?;
+        out_size = (gpu.width, gpu.height);
         let synth = t.elapsed();
         let t = Instant::now();
         let rgba8 = gpu.read_rgba8(&ctx)?;
@@ -523,6 +529,18 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
     ));
     if let Some(c) = &args.coords_out {
         ui.info(format!("coordinates: {}", c.display()));
+    }
+    for a in &args.also {
+        ui.info(format!(
+            "map: {} -> {}{}",
+            a.input.display(),
+            a.output.display(),
+            match (a.normal, a.green_down) {
+                (false, _) => "",
+                (true, false) => " (normal map, green up)",
+                (true, true) => " (normal map, green down)",
+            }
+        ));
     }
     match analysis_time {
         None => ui.info(format!(
