@@ -349,6 +349,19 @@ fn synth_analyze_and_eval() {
         1,
         "is 32x32",
     );
+    // A map whose values are not positions in this exemplar.
+    let mut far = image::Rgba32FImage::new(64, 64);
+    far.put_pixel(5, 6, image::Rgba([1e9, 0.0, 0.0, 1.0]));
+    image::DynamicImage::ImageRgba32F(far)
+        .save(dir.path("far.exr"))
+        .unwrap();
+    fails(
+        &dir,
+        &["eval", GRAVEL, "out.png", "--coords", "far.exr"],
+        1,
+        "outside the 128x128 exemplar",
+    );
+    std::fs::remove_file(dir.path("far.exr")).unwrap();
 
     // Bad analysis files: flipped byte (checksum), wrong version, options that disagree.
     let mut bytes = read("gravel.tsa");

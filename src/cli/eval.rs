@@ -158,6 +158,31 @@ pub fn run(ui: &Ui, args: EvalArgs) -> CliResult<()> {
                     output.height
                 )));
             }
+            // Synthesized coordinates are exemplar positions: anything far outside is not
+            // a coordinate map of this exemplar (another file, another exemplar).
+            let (ew, eh) = (exemplar.width as f32, exemplar.height as f32);
+            if let Some(v) = c
+                .iter()
+                .find(|v| !(v[0] >= -1.0 && v[0] <= ew && v[1] >= -1.0 && v[1] <= eh))
+            {
+                return Err(fail(format!(
+                    "{}: coordinate ({}, {}) lies outside the {}x{} exemplar: give the coordinate \
+                     map written with --coords-out for this exemplar",
+                    path.display(),
+                    v[0],
+                    v[1],
+                    exemplar.width,
+                    exemplar.height
+                )));
+            }
+            if args.field.is_none() && c.iter().any(|v| v[0].fract() != 0.0 || v[1].fract() != 0.0)
+            {
+                ui.info(
+                    "note: the coordinate map is fractional (an anisometric synthesis?): the \
+                     verbatim figures count exact integer copies; give --field SPEC (the field \
+                     it was synthesized along) for the Jacobian figures instead",
+                );
+            }
             Some((w, h, c))
         }
     };

@@ -161,6 +161,7 @@ pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
     check_output_dir(&args.output)?;
     for p in [&args.render, &args.atlas_out].into_iter().flatten() {
         check_output_dir(p)?;
+        super::synth::check_save_extension(p)?;
     }
     let outputs: Vec<&std::path::Path> = [
         Some(&args.output),

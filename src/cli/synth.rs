@@ -282,7 +282,15 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
             .map(|m| ("feature mask", m)),
     );
     super::check_outputs_not_inputs(&outputs, &inputs)?;
+    for a in &args.also {
+        check_output_dir(&a.output)?;
+        check_save_extension(&a.output)?;
+    }
     let [width, height] = args.size;
+    // A field from a file: its size and values, before the analysis.
+    if let Some(f) = args.field.as_ref().filter(|f| f.file().is_some()) {
+        f.resolve(args.window, width, height)?;
+    }
     // What the output file holds (larger than the synthesis with --magnify).
     let mut out_size = (width, height);
 
