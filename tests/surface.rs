@@ -442,7 +442,7 @@ fn surface_cli_end_to_end_and_bad_inputs() {
                 "--atlas-size",
                 "4",
             ],
-            "atlas size",
+            "8..=16384",
         ),
         (
             vec![

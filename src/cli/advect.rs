@@ -92,8 +92,9 @@ pub struct AdvectArgs {
     #[arg(long, value_name = "MESH")]
     pub mesh: Option<PathBuf>,
 
-    /// Atlas size for --mesh
-    #[arg(long, default_value_t = 512, requires = "mesh")]
+    /// Atlas size for --mesh (8 to 16384)
+    #[arg(long, default_value_t = 512, requires = "mesh",
+          value_parser = clap::value_parser!(u32).range(8..=16384))]
     pub atlas_size: u32,
 
     #[command(flatten)]

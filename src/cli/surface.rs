@@ -41,8 +41,9 @@ pub struct SurfaceArgs {
     #[arg(short, long, value_name = "OUT.glb")]
     pub output: PathBuf,
 
-    /// Atlas side in texels
-    #[arg(long, value_name = "N", default_value_t = 1024)]
+    /// Atlas side in texels (8 to 16384; small meshes need more texels than charts)
+    #[arg(long, value_name = "N", default_value_t = 1024,
+          value_parser = clap::value_parser!(u32).range(8..=16384))]
     pub atlas_size: u32,
 
     /// World units per exemplar texel: a number, or linear:AX,AY,AZ:S_MIN:S_MAX to vary
@@ -68,10 +69,10 @@ pub struct SurfaceArgs {
     pub render: Option<PathBuf>,
 
     /// Views in the render (orbiting the mesh, side by side)
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..))]
     pub views: u32,
     /// Size of each rendered view in pixels
-    #[arg(long, default_value_t = 384)]
+    #[arg(long, default_value_t = 384, value_parser = clap::value_parser!(u32).range(1..))]
     pub view_size: u32,
 
     /// Also write the raw colour atlas to this image
