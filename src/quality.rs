@@ -1459,6 +1459,22 @@ impl JacobianReport {
     }
 }
 
+/// The observed Jacobian's columns `cx`, `cy` minus `J` (as `[dJ00, dJ01, dJ10, dJ11]`),
+/// and the relative Frobenius error `|J_obs - J|_F / |J|_F`.
+fn jacobian_error(cx: [f64; 2], cy: [f64; 2], j: &[[f64; 2]; 2]) -> ([f64; 4], f64) {
+    let e = [
+        cx[0] - j[0][0],
+        cy[0] - j[0][1],
+        cx[1] - j[1][0],
+        cy[1] - j[1][1],
+    ];
+    let norm_j = j.iter().flatten().map(|v| v * v).sum::<f64>().sqrt();
+    (
+        e,
+        e.iter().map(|v| v * v).sum::<f64>().sqrt() / norm_j.max(1e-12),
+    )
+}
+
 /// Compares the finite-difference Jacobian of a continuous coordinate map (exemplar
 /// pixels, e.g. [`crate::Synthesis::coords_f32`]) with the field it was synthesized
 /// along. `J_obs(p) = [S(p+x) - S(p), S(p+y) - S(p)]` (differences wrapped to the
@@ -1504,14 +1520,7 @@ pub fn jacobian_fidelity(
                 (origin[0] as i64 + x as i64) as f64,
                 (origin[1] as i64 + y as i64) as f64,
             );
-            let e = [
-                cx[0] - j[0][0],
-                cy[0] - j[0][1],
-                cx[1] - j[1][0],
-                cy[1] - j[1][1],
-            ];
-            let norm_j = j.iter().flatten().map(|v| v * v).sum::<f64>().sqrt();
-            let err = e.iter().map(|v| v * v).sum::<f64>().sqrt() / norm_j.max(1e-12);
+            let (e, err) = jacobian_error(cx, cy, &j);
             let seam = (e[0] * e[0] + e[2] * e[2]).sqrt() > 1.0
                 || (e[1] * e[1] + e[3] * e[3]).sqrt() > 1.0;
             total += 1;
@@ -1567,15 +1576,7 @@ pub fn jacobian_fidelity(
             };
             match (column(0), column(1)) {
                 (Some(cx), Some(cy)) => {
-                    let e = [
-                        cx[0] - j[0][0],
-                        cy[0] - j[0][1],
-                        cx[1] - j[1][0],
-                        cy[1] - j[1][1],
-                    ];
-                    let norm_j = j.iter().flatten().map(|v| v * v).sum::<f64>().sqrt();
-                    let err = e.iter().map(|v| v * v).sum::<f64>().sqrt() / norm_j.max(1e-12);
-                    if err <= tolerance {
+                    if jacobian_error(cx, cy, &j).1 <= tolerance {
                         local_ok += 1;
                     }
                 }
