@@ -203,9 +203,13 @@ pub fn run(ui: &Ui, args: BenchArgs) -> CliResult<()> {
         fmt_duration(upload)
     ))?;
     ui.out(format!(
-        "synthesis: {} passes, seed {}; {} warm-up + {} timed runs per size; GPU = submit + wait, no read-back",
-        args.passes, args.seed, args.warmup, args.runs
+        "synthesis: {} passes ({} at the finest level), {:?} distance, seed {}; {} warm-up + {} timed runs per size; GPU = submit + wait, no read-back",
+        args.passes, args.finest_passes, args.distance, args.seed, args.warmup, args.runs
     ))?;
+    ui.out(match &args.field {
+        Some(f) => format!("field: {f:?}"),
+        None => "field: none (isometric)".to_string(),
+    })?;
     ui.out("")?;
     ui.out(format!(
         "{:<11} {:>11} {:>11} {:>11} {:>11} {:>16}",

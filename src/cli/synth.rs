@@ -154,6 +154,20 @@ fn parse_also(s: &str) -> Result<AlsoMap, String> {
     let (input, output) = rest
         .split_once('=')
         .ok_or_else(|| format!("'{s}': expected IN=OUT, e.g. normal.png=out_normal.png"))?;
+    // `word:IN=OUT` with an unknown word is a typo of a kind, not a file name.
+    if kind.is_none() {
+        if let Some((prefix, _)) = input.split_once(':') {
+            if prefix.len() > 1
+                && prefix
+                    .bytes()
+                    .all(|b| b.is_ascii_alphanumeric() || b == b'-')
+            {
+                return Err(format!(
+                    "'{s}': unknown map kind '{prefix}:' (normal:, normal-dx: or plain:)"
+                ));
+            }
+        }
+    }
     if input.is_empty() || output.is_empty() {
         return Err(format!("'{s}': both IN and OUT must be given"));
     }
