@@ -516,6 +516,12 @@ fn bad_inputs_fail_cleanly() {
         1,
         "does not exist",
     );
+    fails(
+        &dir,
+        &["analyze", GRAVEL, "-o", "g2.tsa", "--exclusion", "1000"],
+        1,
+        "use less than 64",
+    );
 
     fails(
         &dir,

@@ -335,6 +335,16 @@ pub fn analyze(
             ex.width, ex.height
         )));
     }
+    // Members must lie at least the radius away (Chebyshev): at half the exemplar's
+    // larger side, no pixel has any.
+    let half = ex.width.max(ex.height) / 2;
+    if opts.k > 1 && opts.exclusion_radius >= half {
+        return Err(Error::InvalidParameter(format!(
+            "exclusion radius {} leaves no similarity-set members on a {}x{} exemplar: \
+             use less than {half} (default 4)",
+            opts.exclusion_radius, ex.width, ex.height
+        )));
+    }
     feature::check_weight(opts.feature_weight)?;
     feature::check_clamp(opts.feature_clamp)?;
     if let Some(mask) = &opts.feature_mask {
