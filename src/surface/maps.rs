@@ -132,7 +132,9 @@ fn build_level(
     }
     if count == 0 && steps == 0 {
         return Err(Error::InvalidParameter(
-            "no atlas texel lies inside a chart: the atlas is too small for this mesh".into(),
+            "no atlas texel lies inside a chart: the atlas is too small for this mesh; use a \
+             larger atlas (256 texels or more for most meshes)"
+                .into(),
         ));
     }
     report.inside.push(count);

@@ -168,8 +168,9 @@ impl Mesh {
         let n = self.positions.len();
         if let Some(i) = self.positions.iter().position(|p| !p.is_finite()) {
             return Err(invalid(format!(
-                "mesh vertex {i} has a non-finite position {:?}",
-                self.positions[i]
+                "mesh vertex {i} has a non-finite position ({}, {}, {}) (after the node \
+                 transforms): repair the mesh (e.g. Blender's Mesh > Clean Up) and export it again",
+                self.positions[i].x, self.positions[i].y, self.positions[i].z
             )));
         }
         if let Some(i) = self.normals.iter().position(|v| !v.is_finite()) {
