@@ -555,7 +555,17 @@ pub fn save_coords_exr_f32_atomic(
 /// Reads a coordinate map as floats (exemplar pixels, not rounded): `(width, height,
 /// coords)`. Same checks as [`load_coords_exr`].
 pub fn load_coords_exr_f32(path: &Path) -> Result<(u32, u32, Vec<[f32; 2]>)> {
-    let img = decode_image(path)?;
+    // The decoder's own message (e.g. for a 2-channel EXR) does not say what is expected.
+    let img = decode_image(path).map_err(|e| match e {
+        Error::BadImage { path, reason } => Error::BadImage {
+            path,
+            reason: format!(
+                "{reason}; a coordinate map is an RGB or RGBA float EXR (R = x, G = y), as \
+                 --coords-out writes"
+            ),
+        },
+        other => other,
+    })?;
     let bad = |reason: String| Error::BadImage {
         path: path.to_path_buf(),
         reason,

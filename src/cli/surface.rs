@@ -54,7 +54,7 @@ pub struct SurfaceArgs {
     /// Where the exemplar's x axis goes on the surface (see --help)
     #[arg(long, value_name = "SPEC", default_value = "up", value_parser = parse_direction,
           long_help = DIRECTION_HELP)]
-    pub field: DirectionSource,
+    pub field: DirectionArg,
 
     /// Always build a new atlas (default: keep a usable TEXCOORD_0)
     #[arg(long, conflicts_with = "keep_uvs")]
@@ -127,8 +127,33 @@ fn parse_scale(s: &str) -> Result<ScaleSource, String> {
     s.parse::<ScaleSource>().map_err(|e| e.to_string())
 }
 
-fn parse_direction(s: &str) -> Result<DirectionSource, String> {
-    s.parse::<DirectionSource>().map_err(|e| e.to_string())
+/// A `--field` as given: `constraints:FILE` is read when the command runs (a missing
+/// or bad file is a run error, exit 1, like other input files); the rest is parsed now.
+#[derive(Clone, Debug)]
+pub enum DirectionArg {
+    Parsed(DirectionSource),
+    Constraints(PathBuf),
+}
+
+impl DirectionArg {
+    fn load(&self) -> CliResult<DirectionSource> {
+        match self {
+            DirectionArg::Parsed(d) => Ok(d.clone()),
+            DirectionArg::Constraints(path) => Ok(DirectionSource::Constraints(
+                texsyn::surface::tangent_field::read_constraints(path)?,
+            )),
+        }
+    }
+}
+
+fn parse_direction(s: &str) -> Result<DirectionArg, String> {
+    match s.strip_prefix("constraints:").map(str::trim) {
+        Some(path) if !path.is_empty() => Ok(DirectionArg::Constraints(PathBuf::from(path))),
+        _ => s
+            .parse::<DirectionSource>()
+            .map(DirectionArg::Parsed)
+            .map_err(|e| e.to_string()),
+    }
 }
 
 /// Refuses an atlas the device cannot synthesize before the mesh work (minutes for
@@ -184,6 +209,8 @@ pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
         inputs.extend(p.as_deref().map(|p| (what, p)));
     }
     super::check_outputs_not_inputs(&outputs, &inputs)?;
+    // A constraints file is read now, before the analysis and the mesh work.
+    let direction = args.field.load()?;
     if args.output.extension().and_then(|e| e.to_str()) != Some("glb") {
         return Err(fail(format!(
             "{}: the output is a binary glTF; name it *.glb",
@@ -298,7 +325,7 @@ pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
             },
             ..AtlasOptions::for_size(args.atlas_size)
         },
-        direction: args.field.clone(),
+        direction,
         scale: args.texel_size.clone(),
     };
     ui.progress("preparing the atlas, field and maps...");
