@@ -489,3 +489,52 @@ fn surface_cli_end_to_end_and_bad_inputs() {
         .collect();
     assert!(leftovers.is_empty(), "temporary files left: {leftovers:?}");
 }
+
+/// `surface --magnify` with material maps: the maps are magnified with the colours
+/// (a roughness map equal to the exemplar's grey comes out equal to the base colour).
+#[test]
+fn surface_cli_magnifies_material_maps() {
+    let dir = common::TempDir::new("surface-magnify");
+    let out = dir.path("m.glb");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_texsyn"))
+        .args([
+            "surface",
+            "assets/meshes/bunny.glb",
+            "assets/gravel.png",
+            "-o",
+            out.to_str().unwrap(),
+            "--atlas-size",
+            "64",
+            "--magnify",
+            "2",
+            "--roughness-map",
+            "assets/gravel.png",
+            "-q",
+        ])
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (doc, _, images) = gltf::import(&out).unwrap();
+    let m = doc.materials().next().unwrap();
+    let pbr = m.pbr_metallic_roughness();
+    let base = &images[pbr.base_color_texture().unwrap().texture().source().index()];
+    let rough = &images[pbr
+        .metallic_roughness_texture()
+        .unwrap()
+        .texture()
+        .source()
+        .index()];
+    assert_eq!((base.width, base.height), (128, 128));
+    assert_eq!((rough.width, rough.height), (128, 128));
+    let channels = |d: &gltf::image::Data| match d.format {
+        gltf::image::Format::R8G8B8A8 => 4,
+        gltf::image::Format::R8G8B8 => 3,
+        other => panic!("unexpected image format {other:?}"),
+    };
+    let (cb, cr) = (channels(base), channels(rough));
+    for i in 0..128 * 128 {
+        // Roughness is packed in green; the grey exemplar's colour in every channel.
+        assert_eq!(base.pixels[i * cb], rough.pixels[i * cr + 1], "texel {i}");
+    }
+}

@@ -267,16 +267,17 @@ pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
             None => None,
         });
     }
+    // Material maps are aligned with the exemplar as given (full resolution with
+    // --magnify: they are magnified with the colours).
+    let full_size = match &source {
+        Source::Image(ex) => Some((ex.width, ex.height)),
+        Source::Analysis(_) => None,
+    };
     let mut hi_res = None;
     if let Some(f) = args.magnify {
         let (small, hi) = super::synth::magnify_source(source, f)?;
         source = small;
         hi_res = Some(hi);
-        if material_maps.iter().any(Option::is_some) {
-            return Err(fail(
-                "--magnify cannot be combined with material maps (--normal-map, --roughness-map, --occlusion-map) yet",
-            ));
-        }
     }
 
     let ctx = GpuContext::headless()?;
@@ -300,15 +301,19 @@ pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
         }
     };
     let analysis_time = t.elapsed();
+    let (map_w, map_h) = match (&hi_res, full_size) {
+        (Some(_), Some(size)) => size,
+        _ => (analysis.width, analysis.height),
+    };
     for (n, _, path) in material_maps.iter().flatten() {
-        if (n.width, n.height) != (analysis.width, analysis.height) {
+        if (n.width, n.height) != (map_w, map_h) {
             return Err(fail(format!(
                 "{} is {}x{}, the exemplar {}x{}: material maps must be aligned with it",
                 path.display(),
                 n.width,
                 n.height,
-                analysis.width,
-                analysis.height
+                map_w,
+                map_h
             )));
         }
     }
@@ -372,13 +377,25 @@ pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
         .iter()
         .flatten()
         .map(|(n, normal, _)| ExtraMap {
-            pixels: n.colors.clone(),
+            // With --magnify: cropped as the exemplar was (to a multiple of the factor).
+            pixels: match &hi_res {
+                Some((_, hw, hh, _)) => (0..*hh as usize)
+                    .flat_map(|y| {
+                        let row = y * n.width as usize;
+                        n.colors[row..row + *hw as usize].iter().copied()
+                    })
+                    .collect(),
+                None => n.colors.clone(),
+            },
             normal: *normal,
             green_down: *normal && args.normal_green_down,
         })
         .collect();
     let t = Instant::now();
-    let (synthesis, maps) = pipeline::synthesize(&ctx, &synthesizer, &prepared, &base, &extra)?;
+    // Maps come from the magnification when there is one.
+    let plain_maps: &[ExtraMap] = if hi_res.is_some() { &[] } else { &extra };
+    let (synthesis, mut maps) =
+        pipeline::synthesize(&ctx, &synthesizer, &prepared, &base, plain_maps)?;
     ctx.take_uncaptured_errors()?;
     let synth_time = t.elapsed();
     let n = prepared.atlas.size;
@@ -392,14 +409,28 @@ pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
     let to_image = |w: u32, h: u32, px: Vec<u8>| {
         image::RgbaImage::from_raw(w, h, px).ok_or_else(|| fail("internal: image size mismatch"))
     };
-    let base_color = match &hi_res {
+    let (base_color, map_size) = match &hi_res {
+        Some((hi, hw, hh, f)) if !extra.is_empty() => {
+            let params = pipeline::atlas_params(&prepared, &base);
+            let m = synthesizer
+                .synthesize_magnified_with_maps(&ctx, &params, hi, *hw, *hh, *f, &extra)?;
+            maps = m.maps;
+            let px = m.colors.iter().flatten().copied().collect();
+            (to_image(m.width, m.height, px)?, (m.width, m.height))
+        }
         Some((hi, hw, hh, f)) => {
             let params = pipeline::atlas_params(&prepared, &base);
             let gpu = synthesizer.synthesize_magnified(&ctx, &params, hi, *hw, *hh, *f)?;
             let px = gpu.read_rgba8(&ctx)?;
-            to_image(gpu.width, gpu.height, px)?
+            (
+                to_image(gpu.width, gpu.height, px)?,
+                (gpu.width, gpu.height),
+            )
         }
-        None => to_image(n, n, synthesis.colors.iter().flatten().copied().collect())?,
+        None => (
+            to_image(n, n, synthesis.colors.iter().flatten().copied().collect())?,
+            (n, n),
+        ),
     };
     // The synthesized maps, in the order of `material_maps`' present entries.
     let mut synthesized = maps.into_iter();
@@ -412,8 +443,8 @@ pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
                 .next()
                 .ok_or_else(|| fail("internal: missing material map"))?;
             Ok(Some(to_image(
-                n,
-                n,
+                map_size.0,
+                map_size.1,
                 m.into_iter().flat_map(pack).collect(),
             )?))
         };
