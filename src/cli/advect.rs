@@ -237,12 +237,7 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
         inputs.push(("flow file", f));
     }
     inputs.extend(args.mesh.as_deref().map(|m| ("mesh", m)));
-    inputs.extend(
-        args.field
-            .as_ref()
-            .and_then(|f| f.file())
-            .map(|f| ("--field file", f)),
-    );
+    inputs.extend(super::field::FieldSpec::input(&args.field));
     super::check_outputs_not_inputs(&[&args.output], &inputs)?;
     let mut staging = None;
     let mut sink = if ext.as_deref() == Some("gif") {

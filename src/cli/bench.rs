@@ -118,19 +118,17 @@ fn time_runs(
 const BENCH_HINT: &str = "benchmark smaller sizes (--sizes)";
 
 pub fn run(ui: &Ui, args: BenchArgs) -> CliResult<()> {
-    // A field from a file has one size: check it against --sizes before any work.
-    if let Some(spec) = args.field.as_ref().filter(|f| f.file().is_some()) {
-        match args.sizes.0.as_slice() {
-            [[w, h]] => {
-                spec.resolve([0, 0], *w, *h)?;
-            }
-            _ => {
-                return Err(fail(format!(
-                    "--field {}: a field from a file has one size; give that size alone in --sizes",
-                    spec.file().unwrap_or(std::path::Path::new("")).display()
-                )))
-            }
-        }
+    // A field from a file has one size: read and check it against --sizes before any
+    // work (presets are resolved per size below).
+    let mut file_field = None;
+    if let Some((spec, file)) = args.field.as_ref().and_then(|f| f.file().map(|p| (f, p))) {
+        let [[w, h]] = args.sizes.0.as_slice() else {
+            return Err(fail(format!(
+                "--field {}: a field from a file has one size; give that size alone in --sizes",
+                file.display()
+            )));
+        };
+        file_field = Some(spec.resolve([0, 0], *w, *h)?);
     }
     let t = Instant::now();
     let source = read_source(&args.exemplar, None, None)?;
@@ -229,9 +227,10 @@ pub fn run(ui: &Ui, args: BenchArgs) -> CliResult<()> {
             passes: args.passes,
             finest_passes: args.finest_passes,
             distance: args.distance,
-            field: match &args.field {
-                Some(f) => Some(f.resolve([0, 0], w, h)?),
-                None => None,
+            field: match (&file_field, &args.field) {
+                (Some(f), _) => Some(f.clone()),
+                (None, Some(f)) => Some(f.resolve([0, 0], w, h)?),
+                (None, None) => None,
             },
             ..SynthParams::default()
         };

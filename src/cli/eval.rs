@@ -135,12 +135,7 @@ pub fn run(ui: &Ui, args: EvalArgs) -> CliResult<()> {
         ];
         inputs.extend(args.coords.as_deref().map(|c| ("coordinate map", c)));
         inputs.extend(args.feature_mask.as_deref().map(|m| ("feature mask", m)));
-        inputs.extend(
-            args.field
-                .as_ref()
-                .and_then(|f| f.file())
-                .map(|f| ("--field file", f)),
-        );
+        inputs.extend(super::field::FieldSpec::input(&args.field));
         super::check_outputs_not_inputs(&[path], &inputs)?;
     }
     let output = load_image(&args.image)?;

@@ -135,6 +135,14 @@ impl FieldSpec {
         }
     }
 
+    /// The field's file as a labelled input (for `check_outputs_not_inputs`).
+    pub fn input(field: &Option<FieldSpec>) -> Option<(&'static str, &std::path::Path)> {
+        field
+            .as_ref()
+            .and_then(|f| f.file())
+            .map(|f| ("--field file", f))
+    }
+
     /// The field for an output window `origin`, `width` x `height`: presets default to
     /// the window's centre; maps must have the window's size.
     pub fn resolve(&self, origin: [i32; 2], width: u32, height: u32) -> CliResult<Field> {

@@ -379,12 +379,7 @@ pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
         .map(|(n, normal, _)| ExtraMap {
             // With --magnify: cropped as the exemplar was (to a multiple of the factor).
             pixels: match &hi_res {
-                Some((_, hw, hh, _)) => (0..*hh as usize)
-                    .flat_map(|y| {
-                        let row = y * n.width as usize;
-                        n.colors[row..row + *hw as usize].iter().copied()
-                    })
-                    .collect(),
+                Some((_, hw, hh, _)) => super::synth::crop_rows(&n.colors, n.width, *hw, *hh),
                 None => n.colors.clone(),
             },
             normal: *normal,
@@ -392,13 +387,24 @@ pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
         })
         .collect();
     let t = Instant::now();
-    // Maps come from the magnification when there is one.
-    let plain_maps: &[ExtraMap] = if hi_res.is_some() { &[] } else { &extra };
-    let (synthesis, mut maps) =
-        pipeline::synthesize(&ctx, &synthesizer, &prepared, &base, plain_maps)?;
+    let n = prepared.atlas.size;
+    // One synthesis: with --magnify the magnification returns the atlas synthesis too
+    // (for the seam figures and the render), with the magnified colours and maps.
+    let (synthesis, base_rgba, maps, map_size) = match &hi_res {
+        Some((hi, hw, hh, f)) => {
+            let params = pipeline::atlas_params(&prepared, &base);
+            let m = synthesizer
+                .synthesize_magnified_with_maps(&ctx, &params, hi, *hw, *hh, *f, &extra)?;
+            (m.synthesis, m.colors, m.maps, (m.width, m.height))
+        }
+        None => {
+            let (s, maps) = pipeline::synthesize(&ctx, &synthesizer, &prepared, &base, &extra)?;
+            let colors = s.colors.clone();
+            (s, colors, maps, (n, n))
+        }
+    };
     ctx.take_uncaptured_errors()?;
     let synth_time = t.elapsed();
-    let n = prepared.atlas.size;
     let seam = seams::seam_report(&prepared.atlas, &synthesis.colors);
     ui.info(format!(
         "seams: {} seam edges, colour step across seams {:.2} vs {:.2} between neighbouring texels (ratio {:.2})",
@@ -409,29 +415,11 @@ pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
     let to_image = |w: u32, h: u32, px: Vec<u8>| {
         image::RgbaImage::from_raw(w, h, px).ok_or_else(|| fail("internal: image size mismatch"))
     };
-    let (base_color, map_size) = match &hi_res {
-        Some((hi, hw, hh, f)) if !extra.is_empty() => {
-            let params = pipeline::atlas_params(&prepared, &base);
-            let m = synthesizer
-                .synthesize_magnified_with_maps(&ctx, &params, hi, *hw, *hh, *f, &extra)?;
-            maps = m.maps;
-            let px = m.colors.iter().flatten().copied().collect();
-            (to_image(m.width, m.height, px)?, (m.width, m.height))
-        }
-        Some((hi, hw, hh, f)) => {
-            let params = pipeline::atlas_params(&prepared, &base);
-            let gpu = synthesizer.synthesize_magnified(&ctx, &params, hi, *hw, *hh, *f)?;
-            let px = gpu.read_rgba8(&ctx)?;
-            (
-                to_image(gpu.width, gpu.height, px)?,
-                (gpu.width, gpu.height),
-            )
-        }
-        None => (
-            to_image(n, n, synthesis.colors.iter().flatten().copied().collect())?,
-            (n, n),
-        ),
-    };
+    let base_color = to_image(
+        map_size.0,
+        map_size.1,
+        base_rgba.into_iter().flatten().collect(),
+    )?;
     // The synthesized maps, in the order of `material_maps`' present entries.
     let mut synthesized = maps.into_iter();
     let mut next_map =

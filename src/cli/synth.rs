@@ -234,6 +234,14 @@ pub fn magnify_source(source: Source, f: u32) -> CliResult<(Source, HiRes)> {
     }
 }
 
+/// The top-left `w x h` pixels of a row-major image `width` pixels wide (a full-resolution
+/// map cropped as [`magnify_source`] cropped the exemplar).
+pub fn crop_rows(pixels: &[[u8; 4]], width: u32, w: u32, h: u32) -> Vec<[u8; 4]> {
+    (0..h as usize)
+        .flat_map(|y| pixels[y * width as usize..][..w as usize].iter().copied())
+        .collect()
+}
+
 /// The library's size errors name its API (`SynthParams::origin`); name the option.
 pub fn cli_hint(e: texsyn::Error) -> texsyn::Error {
     with_hint(e, WINDOW_HINT)
@@ -283,12 +291,7 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
             .iter()
             .map(|a| ("input of --also", a.input.as_path())),
     );
-    inputs.extend(
-        args.field
-            .as_ref()
-            .and_then(|f| f.file())
-            .map(|f| ("--field file", f)),
-    );
+    inputs.extend(super::field::FieldSpec::input(&args.field));
     inputs.extend(
         args.appearance
             .feature_mask
@@ -301,10 +304,11 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
         check_save_extension(&a.output)?;
     }
     let [width, height] = args.size;
-    // A field from a file: its size and values, before the analysis.
-    if let Some(f) = args.field.as_ref().filter(|f| f.file().is_some()) {
-        f.resolve(args.window, width, height)?;
-    }
+    // The field (a file's size and values too) before the analysis.
+    let field = match &args.field {
+        Some(f) => Some(f.resolve(args.window, width, height)?),
+        None => None,
+    };
     // What the output file holds (larger than the synthesis with --magnify).
     let mut out_size = (width, height);
 
@@ -390,10 +394,7 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
         finest_passes: args.finest_passes,
         coherence: args.coherence,
         distance: args.distance,
-        field: match &args.field {
-            Some(f) => Some(f.resolve(args.window, width, height)?),
-            None => None,
-        },
+        field,
         tileable_output: args.tileable_output,
         surface: None,
         seam_blend: !args.no_seam_blend,
@@ -421,13 +422,7 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
             )));
         }
         let pixels = match &hi_res {
-            Some((_, hw, hh, _)) => (0..*hh as usize)
-                .flat_map(|y| {
-                    ex.colors[y * ew as usize..y * ew as usize + *hw as usize]
-                        .iter()
-                        .copied()
-                })
-                .collect(),
+            Some((_, hw, hh, _)) => crop_rows(&ex.colors, ew, *hw, *hh),
             None => ex.colors,
         };
         extra.push((
