@@ -442,7 +442,10 @@ mod tests {
         ] {
             let c = clamp_singular(&m);
             let d = det(&c).abs();
-            assert!(d >= 1.0 / 64.0 - 1e-9 && d <= 64.0 + 1e-9, "{m:?} -> {c:?}");
+            assert!(
+                (1.0 / 64.0 - 1e-9..=64.0 + 1e-9).contains(&d),
+                "{m:?} -> {c:?}"
+            );
             let fro = c.iter().flatten().map(|v| v * v).sum::<f64>().sqrt();
             assert!(fro <= MAX_SCALE * 2f64.sqrt() + 1e-9);
         }

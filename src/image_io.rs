@@ -666,11 +666,11 @@ pub fn downsample_exemplar(ex: &Exemplar, factor: u32) -> Result<(Exemplar, Vec<
             for dy in 0..f {
                 for dx in 0..f {
                     let i = (y * f + dy) * ex.width as usize + x * f + dx;
-                    for k in 0..c {
-                        v[k] += ex.values[i * c + k];
+                    for (s, x) in v.iter_mut().zip(&ex.values[i * c..(i + 1) * c]) {
+                        *s += x;
                     }
-                    for k in 0..4 {
-                        col[k] += ex.colors[i][k] as u32;
+                    for (s, x) in col.iter_mut().zip(ex.colors[i]) {
+                        *s += x as u32;
                     }
                 }
             }

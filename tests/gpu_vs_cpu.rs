@@ -38,7 +38,8 @@ fn exemplar(w: u32, h: u32) -> Exemplar {
 }
 
 fn analysis(tileable: bool, k: u32) -> Arc<Analysis> {
-    static CACHE: OnceLock<std::sync::Mutex<Vec<((bool, u32), Arc<Analysis>)>>> = OnceLock::new();
+    type Cache = std::sync::Mutex<Vec<((bool, u32), Arc<Analysis>)>>;
+    static CACHE: OnceLock<Cache> = OnceLock::new();
     let cache = CACHE.get_or_init(Default::default);
     let mut c = cache.lock().unwrap();
     if let Some((_, a)) = c.iter().find(|(key, _)| *key == (tileable, k)) {

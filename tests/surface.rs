@@ -21,7 +21,8 @@ fn ctx() -> &'static GpuContext {
 }
 
 fn analysis(size: u32) -> Arc<Analysis> {
-    static CACHE: OnceLock<std::sync::Mutex<Vec<(u32, Arc<Analysis>)>>> = OnceLock::new();
+    type Cache = std::sync::Mutex<Vec<(u32, Arc<Analysis>)>>;
+    static CACHE: OnceLock<Cache> = OnceLock::new();
     let mut c = CACHE.get_or_init(Default::default).lock().unwrap();
     if let Some((_, a)) = c.iter().find(|(s, _)| *s == size) {
         return a.clone();

@@ -362,7 +362,7 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
             1,
             rgba.chunks(4).map(|p| p[0] as f32 / 255.0).collect(),
         )?);
-        if index % args.every != 0 {
+        if !index.is_multiple_of(args.every) {
             return Ok(());
         }
         let image = match &surface {

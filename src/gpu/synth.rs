@@ -505,6 +505,7 @@ impl GpuSynthesizer {
 
     /// Records the first `count` dispatches of the synthesis into `encoder`, writing
     /// colours to `target`. Returns the plan and the coordinate buffer.
+    #[allow(clippy::too_many_arguments)]
     fn record(
         &self,
         ctx: &GpuContext,

@@ -82,13 +82,13 @@ pub fn advect(p: &PassParams, coords: &mut [[i32; 2]], jac: &[[i32; 4]], velocit
 fn step_err(p: &PassParams, d: [i32; 2]) -> u32 {
     let mut e = d;
     if p.tileable != 0 {
-        for k in 0..2 {
-            let n = p.ex_size[k] << p.coord_frac;
-            if e[k] > n / 2 {
-                e[k] -= n;
+        for (ek, size) in e.iter_mut().zip(p.ex_size) {
+            let n = size << p.coord_frac;
+            if *ek > n / 2 {
+                *ek -= n;
             }
-            if e[k] < -n / 2 {
-                e[k] += n;
+            if *ek < -n / 2 {
+                *ek += n;
             }
         }
     }

@@ -69,8 +69,8 @@ pub fn project(p: &PassParams, t: &LevelTables, sums: &[[i32; DIM]; 4]) -> [i32;
     let mut acc = [0i32; DIM];
     for (j, sum) in sums.iter().enumerate() {
         for (r, a) in acc.iter_mut().enumerate() {
-            for c in 0..DIM {
-                *a += t.proj[r][j * DIM + c] as i32 * sum[c];
+            for (c, s) in sum.iter().enumerate() {
+                *a += t.proj[r][j * DIM + c] as i32 * s;
             }
         }
     }

@@ -163,13 +163,13 @@ fn charts_of_uvs(mesh: &Mesh) -> (Vec<u32>, u32) {
     let mut ids = vec![NONE; n];
     let mut chart = vec![0u32; n];
     let mut count = 0;
-    for t in 0..n {
+    for (t, ch) in chart.iter_mut().enumerate() {
         let r = find(&mut parent, t as u32) as usize;
         if ids[r] == NONE {
             ids[r] = count;
             count += 1;
         }
-        chart[t] = ids[r];
+        *ch = ids[r];
     }
     (chart, count)
 }
@@ -333,11 +333,15 @@ pub fn level_size(size: u32, steps: u32) -> u32 {
     s
 }
 
+/// One xatlas packing: vertices, indices, per-triangle charts, chart count and the
+/// packed extent in xatlas texels (padding included).
+type Packed = (Vec<xatlas_rs::Vertex>, Vec<u32>, Vec<u32>, u32, f64);
+
 /// Runs xatlas: charts, parameterization, packing into one `size` x `size` atlas with
 /// `gutter` texels between charts.
 fn generate(mesh: &Mesh, opts: &AtlasOptions) -> Result<Atlas> {
     let area = mesh.surface_area();
-    if !(area > 0.0) || !area.is_finite() {
+    if area.is_nan() || area <= 0.0 || area.is_infinite() {
         return Err(Error::InvalidParameter(
             "the mesh has no surface area to build an atlas on".into(),
         ));
@@ -363,7 +367,7 @@ fn generate(mesh: &Mesh, opts: &AtlasOptions) -> Result<Atlas> {
     // packer achieved (the final uvs are rescaled to the atlas, which scales the gutter
     // too, so the padding asked for is adjusted to land on `gutter` after rescaling).
     let mut tpu = (0.6 * n * n / area).sqrt();
-    let mut best: Option<(Vec<xatlas_rs::Vertex>, Vec<u32>, Vec<u32>, u32, f64)> = None;
+    let mut best: Option<Packed> = None;
     for _attempt in 0..4 {
         let padding = opts.gutter + 1;
         let mut xa = xatlas_rs::Xatlas::new();
