@@ -373,7 +373,15 @@ pub fn load_direction_scale_image(path: &Path) -> Result<FieldMap> {
     let has_scale = img.color().channel_count() >= 2 && img.color().has_color();
     let rgb = img.to_rgb32f();
     let mut jacobians = Vec::with_capacity(w as usize * h as usize);
-    for p in rgb.pixels() {
+    for (i, p) in rgb.pixels().enumerate() {
+        if !(p[0].is_finite() && p[1].is_finite()) {
+            return Err(Error::InvalidParameter(format!(
+                "{}: pixel ({}, {}) is NaN or infinite; a direction-and-scale image needs finite values (angle 0..1, log scale 0..1)",
+                path.display(),
+                i as u32 % w,
+                i as u32 / w
+            )));
+        }
         let angle = p[0] as f64 * std::f64::consts::TAU;
         let scale = if has_scale {
             (2f64).powf((p[1] as f64 - 0.5) * 6.0)

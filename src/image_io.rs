@@ -33,7 +33,8 @@ use crate::error::{Error, Result};
 ///
 /// * `channels` is 1 for grey and grey+alpha images, 3 otherwise (alpha is ignored).
 /// * `values` keep the full source precision (16-bit samples are divided by 65535, not
-///   first reduced to 8 bits); float samples (HDR, EXR) are clamped to [0, 1] (NaN -> 0).
+///   first reduced to 8 bits); float samples (HDR, EXR) must be finite, at most 1% of
+///   them outside [0, 1] (more is an HDR image: an error), and are clamped to [0, 1].
 /// * `colors` are RGBA8 with grey replicated into RGB and alpha always 255.
 ///
 /// Errors: a missing or unreadable file is [`Error::Io`]; an empty, non-image, truncated
@@ -41,13 +42,21 @@ use crate::error::{Error, Result};
 /// [`crate::analysis::MIN_EXEMPLAR_SIZE`] on either side is [`Error::ExemplarTooSmall`].
 pub fn load_exemplar(path: &Path) -> Result<Exemplar> {
     let img = decode_image(path)?;
-    exemplar_from_image(&img)
+    exemplar_from(&img, Some(path))
 }
 
 /// Builds an [`Exemplar`] from an already decoded image (see [`load_exemplar`] for the
 /// conversion rules). Fails with [`Error::ExemplarTooSmall`] for images below the minimum
 /// size.
 pub fn exemplar_from_image(img: &DynamicImage) -> Result<Exemplar> {
+    exemplar_from(img, None)
+}
+
+fn exemplar_from(img: &DynamicImage, path: Option<&Path>) -> Result<Exemplar> {
+    let bad_floats = |reason: String| {
+        let what = path.map_or("exemplar".into(), |p| p.display().to_string());
+        Error::InvalidParameter(format!("{what}: {reason}"))
+    };
     let (width, height) = (img.width(), img.height());
     check_exemplar_size(width, height)?;
     let n = width as usize * height as usize;
@@ -118,6 +127,7 @@ pub fn exemplar_from_image(img: &DynamicImage) -> Result<Exemplar> {
             }
         }
         DynamicImage::ImageRgb32F(b) => {
+            check_float_samples(b.pixels().map(|p| [p.0[0], p.0[1], p.0[2]]), width).map_err(bad_floats)?;
             channels = 3;
             values = Vec::with_capacity(3 * n);
             for p in b.pixels() {
@@ -125,6 +135,7 @@ pub fn exemplar_from_image(img: &DynamicImage) -> Result<Exemplar> {
             }
         }
         DynamicImage::ImageRgba32F(b) => {
+            check_float_samples(b.pixels().map(|p| [p.0[0], p.0[1], p.0[2]]), width).map_err(bad_floats)?;
             channels = 3;
             values = Vec::with_capacity(3 * n);
             for p in b.pixels() {
@@ -136,6 +147,8 @@ pub fn exemplar_from_image(img: &DynamicImage) -> Result<Exemplar> {
             channels = 3;
             values = Vec::with_capacity(3 * n);
             let b = other.to_rgb32f();
+            check_float_samples(b.pixels().map(|p| [p.0[0], p.0[1], p.0[2]]), width)
+                .map_err(bad_floats)?;
             for p in b.pixels() {
                 push_rgbf(&mut values, &mut colors, [p.0[0], p.0[1], p.0[2]]);
             }
@@ -149,6 +162,40 @@ pub fn exemplar_from_image(img: &DynamicImage) -> Result<Exemplar> {
         values,
         colors,
     })
+}
+
+/// Float exemplars (EXR, HDR) are display colours in [0, 1]: a NaN or infinite sample is
+/// an error, and so is an image with more than 1% of its samples outside [0, 1] (an HDR
+/// image, which clamping would wash out); the rest is clamped.
+fn check_float_samples(
+    pixels: impl Iterator<Item = [f32; 3]>,
+    width: u32,
+) -> std::result::Result<(), String> {
+    let (mut outside, mut total, mut max) = (0usize, 0usize, 0f32);
+    for (i, p) in pixels.enumerate() {
+        for v in p {
+            if !v.is_finite() {
+                return Err(format!(
+                    "pixel ({}, {}) is NaN or infinite; the exemplar needs finite colours",
+                    i as u32 % width.max(1),
+                    i as u32 / width.max(1)
+                ));
+            }
+            if !(-1.0 / 255.0..=1.0 + 1.0 / 255.0).contains(&v) {
+                outside += 1;
+                max = max.max(v.abs());
+            }
+            total += 1;
+        }
+    }
+    if outside * 100 > total {
+        return Err(format!(
+            "{:.1}% of the samples lie outside [0, 1] (up to {max}): texsyn works on display \
+             colours in [0, 1]; tone-map or rescale the image first (e.g. save it as a PNG)",
+            outside as f64 * 100.0 / total as f64
+        ));
+    }
+    Ok(())
 }
 
 fn grey8(v: u8) -> [u8; 4] {

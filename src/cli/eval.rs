@@ -139,6 +139,14 @@ pub fn run(ui: &Ui, args: EvalArgs) -> CliResult<()> {
         super::check_outputs_not_inputs(&[path], &inputs)?;
     }
     let output = load_image(&args.image)?;
+    let mask = match &args.feature_mask {
+        Some(path) => {
+            let mask = texsyn::analysis::FeatureMask::load(path)?;
+            mask.check_size(exemplar.width, exemplar.height)?;
+            Some(mask)
+        }
+        None => None,
+    };
 
     let coords = match &args.coords {
         None => None,
@@ -224,9 +232,6 @@ pub fn run(ui: &Ui, args: EvalArgs) -> CliResult<()> {
         _ => None,
     };
 
-    if let Some(path) = &args.energy_map {
-        write_energy_map(path, &exemplar, &output, args.energy_scale)?;
-    }
     let report = quality::evaluate(&exemplar, &output, quality::DEFAULT_RADIUS, map)?;
     let wrap_seam = quality::wrap_seam_ratio(&output)?;
     let mut json = report.to_json();
@@ -235,9 +240,7 @@ pub fn run(ui: &Ui, args: EvalArgs) -> CliResult<()> {
         ",\"wrap_seam_ratio\":{}}}",
         json_number(wrap_seam)
     ));
-    if let (Some(path), Some((w, h, c))) = (&args.feature_mask, &coords) {
-        let mask = texsyn::analysis::FeatureMask::load(path)?;
-        mask.check_size(ex_size[0], ex_size[1])?;
+    if let (Some(mask), Some((w, h, c))) = (&mask, &coords) {
         let b = quality::feature_breakage(&mask, c, *w, *h, tileable)?;
         json.pop();
         json.push_str(&format!(",\"features\":{}}}", b.to_json()));
@@ -245,6 +248,10 @@ pub fn run(ui: &Ui, args: EvalArgs) -> CliResult<()> {
     if let Some(j) = jacobian {
         json.pop();
         json.push_str(&format!(",\"jacobian\":{}}}", j.to_json()));
+    }
+    // Written last, so a failed evaluation leaves no map behind.
+    if let Some(path) = &args.energy_map {
+        write_energy_map(path, &exemplar, &output, args.energy_scale)?;
     }
     ui.out(json)
 }
