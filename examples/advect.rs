@@ -30,13 +30,11 @@ fn main() -> texsyn::Result<()> {
         force_fallback_adapter: false,
         compatible_surface: None,
         ..Default::default()
-    }))
-    .map_err(|e| texsyn::Error::NoAdapter(e.to_string()))?;
+    }))?;
     let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
         label: Some("host application"),
         ..Default::default()
-    }))
-    .map_err(|e| texsyn::Error::Gpu(e.to_string()))?;
+    }))?;
     let ctx = GpuContext::from_device(device.clone(), queue.clone());
 
     let exemplar = texsyn::image_io::load_exemplar(

@@ -3,40 +3,110 @@
 
 use std::path::PathBuf;
 
+/// Every error texsyn returns. The `Display` text is a complete message for the user.
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
+    /// A file (exemplar, analysis file, mesh, tangent field, ...) could not be opened or
+    /// read: missing, a directory, no permission. Check the path.
     #[error("cannot read {path}: {source}")]
     Io {
+        /// The file that could not be read.
         path: PathBuf,
+        /// The operating system's error.
         #[source]
         source: std::io::Error,
     },
+    /// A file was read but is not an image the decoder accepts: empty, truncated, corrupt
+    /// or an unsupported format.
     #[error("{path} is not a readable image: {reason}")]
-    BadImage { path: PathBuf, reason: String },
+    BadImage {
+        /// The offending file.
+        path: PathBuf,
+        /// The decoder's explanation.
+        reason: String,
+    },
+    /// The exemplar is smaller than [`crate::analysis::MIN_EXEMPLAR_SIZE`] pixels on
+    /// either side. Use a larger exemplar (or upscale it).
     #[error("exemplar is {width}x{height}; texsyn needs at least {min}x{min} pixels")]
-    ExemplarTooSmall { width: u32, height: u32, min: u32 },
+    ExemplarTooSmall {
+        /// Exemplar width in pixels.
+        width: u32,
+        /// Exemplar height in pixels.
+        height: u32,
+        /// The minimum side length in pixels.
+        min: u32,
+    },
+    /// An output or intermediate buffer would exceed a limit of the GPU device (texture
+    /// dimension or storage-buffer size). Ask for a smaller size; `hint` says how.
     #[error("{what} is {width}x{height}, larger than this device allows ({limit}); {hint}")]
     TooLarge {
+        /// What is too large (e.g. "output").
         what: &'static str,
+        /// Requested width in pixels.
         width: u32,
+        /// Requested height in pixels.
         height: u32,
+        /// The device limit that was exceeded, in words.
         limit: String,
+        /// What to do instead.
         hint: &'static str,
     },
+    /// A parameter or option is out of range or inconsistent (size, seed window, field,
+    /// flow, pass counts, ...); the message names it and the accepted values.
     #[error("invalid parameter: {0}")]
     InvalidParameter(String),
+    /// An analysis file (from `texsyn analyze`) that cannot be decoded: wrong magic or
+    /// format version, truncated, checksum mismatch, invalid content. Re-run `texsyn analyze`.
     #[error("{path}: {reason}")]
-    BadAnalysisFile { path: PathBuf, reason: String },
+    BadAnalysisFile {
+        /// The analysis file.
+        path: PathBuf,
+        /// What is wrong with it.
+        reason: String,
+    },
     /// A mesh file (glTF / GLB) that cannot be used: unreadable structure, missing
     /// buffers, no triangles, out-of-range data.
     #[error("{path}: {reason}")]
-    BadMesh { path: PathBuf, reason: String },
+    BadMesh {
+        /// The mesh file.
+        path: PathBuf,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// An output file (image, EXR, analysis file, glTF, animation) could not be encoded or
+    /// written. Check that the directory exists and is writable.
     #[error("cannot write {path}: {reason}")]
-    Write { path: PathBuf, reason: String },
+    Write {
+        /// The file being written.
+        path: PathBuf,
+        /// The encoder's or operating system's explanation.
+        reason: String,
+    },
+    /// No usable GPU adapter was found, none matched the requested adapter, or the chosen
+    /// one lacks compute shaders. Install a Vulkan driver (lavapipe without a GPU).
     #[error("no GPU adapter: {0}. On a machine without a GPU install Mesa's lavapipe (Debian: apt-get install mesa-vulkan-drivers libvulkan1)")]
     NoAdapter(String),
+    /// The device could not be created, or wgpu reported an error (validation, out of
+    /// memory, a failed read-back) while running the passes.
     #[error("GPU error: {0}")]
     Gpu(String),
 }
 
+/// `std::result::Result` with texsyn's [`Error`].
 pub type Result<T> = std::result::Result<T, Error>;
+
+/// So that an embedder creating its own adapter can use `?` in a function returning
+/// [`Result`].
+impl From<wgpu::RequestAdapterError> for Error {
+    fn from(e: wgpu::RequestAdapterError) -> Self {
+        Error::NoAdapter(e.to_string())
+    }
+}
+
+/// So that an embedder creating its own device can use `?` in a function returning
+/// [`Result`].
+impl From<wgpu::RequestDeviceError> for Error {
+    fn from(e: wgpu::RequestDeviceError) -> Self {
+        Error::Gpu(format!("the device could not be created: {e}"))
+    }
+}

@@ -28,45 +28,73 @@ pub const MAX_SCALE: f64 = 8.0;
 /// A 2x2 matrix `[[a, b], [c, d]]`: `J v = (a v.x + b v.y, c v.x + d v.y)`.
 pub type Mat2 = [[f64; 2]; 2];
 
+/// The identity Jacobian: isometric synthesis (one exemplar pixel per output pixel).
 pub const IDENTITY: Mat2 = [[1.0, 0.0], [0.0, 1.0]];
 
 /// Where a field comes from.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Field {
-    /// The same transform everywhere: the texture rotated by `angle` (radians,
-    /// counter-clockwise on screen, y down), magnified by `scale` along its own x and y
-    /// axes, and sheared by `shear` (its y axis leans by `shear` per unit).
+    /// The same transform everywhere: the texture rotated by `angle` (radians; positive
+    /// turns its x axis toward +y, which is down, so clockwise as seen on screen),
+    /// magnified by `scale` along its own x and y axes, and sheared by `shear` (its y axis
+    /// leans by `shear` per unit).
     Constant {
+        /// Rotation in radians: the texture's x axis points along `(cos, sin)` in output
+        /// pixels (y down), so positive is clockwise on screen; 0 = unrotated.
         angle: f64,
+        /// Magnification `[x, y]` along the texture's own axes: output pixels per
+        /// exemplar pixel (1 = actual size, 2 = twice as large); non-zero, negative mirrors.
         scale: [f64; 2],
+        /// Shear: how far the texture's y axis leans per unit along it (0 = none).
         shear: f64,
     },
     /// The texture's x axis follows circles around `center` (a vortex singularity);
     /// `scale` magnifies it uniformly.
-    Vortex { center: [f64; 2], scale: f64 },
+    Vortex {
+        /// Centre of the vortex `[x, y]` in absolute output pixels.
+        center: [f64; 2],
+        /// Uniform magnification (output pixels per exemplar pixel), > 0.
+        scale: f64,
+    },
     /// The texture is rotated by `turns * 2 pi * (1 - r / radius)` inside `radius` of
     /// `center` (none outside): a swirl.
     Swirl {
+        /// Centre of the swirl `[x, y]` in absolute output pixels.
         center: [f64; 2],
+        /// Radius in output pixels beyond which there is no rotation, > 0.
         radius: f64,
+        /// Rotation at the centre in full turns (1 = 360 degrees); fades linearly to 0
+        /// at `radius`.
         turns: f64,
+        /// Uniform magnification (output pixels per exemplar pixel) everywhere, > 0.
         scale: f64,
     },
     /// The texture's "up" (-y) points at `center`; its scale grows toward the centre
     /// from `scale` at distance `radius` to `scale * growth` at the centre.
     Radial {
+        /// The point the texture's "up" points at, `[x, y]` in absolute output pixels.
         center: [f64; 2],
+        /// Distance in output pixels at (and beyond) which the magnification is `scale`, > 0.
         radius: f64,
+        /// Magnification (output pixels per exemplar pixel) at `radius` and beyond, > 0.
         scale: f64,
+        /// Factor on `scale` at the centre, > 0 (interpolated linearly in the distance;
+        /// 1 = constant scale, > 1 = larger toward the centre).
         growth: f64,
     },
     /// A ground plane seen in perspective: the horizon is the row `horizon`, the
     /// texture has magnification `scale` at row `bottom` and shrinks toward the horizon
     /// (x like 1/depth, y like 1/depth^2); `center` is the column of the vanishing point.
     Perspective {
+        /// Row (y, absolute output pixels) of the horizon.
         horizon: f64,
+        /// Reference row (y, absolute output pixels) for `scale`; must be greater than
+        /// `horizon` (below it on screen).
         bottom: f64,
+        /// Column (x, absolute output pixels) of the vanishing point.
         center: f64,
+        /// Magnification (output pixels per exemplar pixel) at row `bottom` below the
+        /// vanishing point, > 0.
         scale: f64,
     },
     /// Per-pixel Jacobians over `[0, width) x [0, height)` of the output (row-major);
@@ -77,8 +105,12 @@ pub enum Field {
 /// A sampled field (from an image or an EXR).
 #[derive(Clone, Debug, PartialEq)]
 pub struct FieldMap {
+    /// Width in pixels; map pixel `(i, j)` is the field at output position `(i, j)`.
     pub width: u32,
+    /// Height in pixels.
     pub height: u32,
+    /// `width * height` Jacobians, row-major, top row first; each in exemplar pixels per
+    /// output pixel, and must be finite.
     pub jacobians: Vec<Mat2>,
 }
 
@@ -87,6 +119,7 @@ fn rot(a: f64) -> Mat2 {
     [[c, -s], [s, c]]
 }
 
+/// The matrix product `a b` (apply `b` first).
 pub fn mul(a: &Mat2, b: &Mat2) -> Mat2 {
     [
         [
@@ -100,6 +133,7 @@ pub fn mul(a: &Mat2, b: &Mat2) -> Mat2 {
     ]
 }
 
+/// The determinant of `m` (exemplar area per output area for a Jacobian).
 pub fn det(m: &Mat2) -> f64 {
     m[0][0] * m[1][1] - m[0][1] * m[1][0]
 }

@@ -5,30 +5,63 @@ use std::path::Path;
 
 use crate::error::{Error, Result};
 
-/// A velocity field over the output (or atlas), pixel units.
+/// A velocity field over the output (or atlas), pixel units; [`Flow::sample`] gives the
+/// 2D meaning below, [`crate::surface::flow::atlas_velocity`] the one on a mesh.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Flow {
     /// The same velocity everywhere.
-    Uniform { vx: f32, vy: f32 },
+    Uniform {
+        /// Horizontal velocity, pixels per unit time (positive: to the right).
+        vx: f32,
+        /// Vertical velocity, pixels per unit time (positive: down).
+        vy: f32,
+    },
     /// Rigid rotation about `(cx, cy)` (fractions of the size) at `omega` radians per unit
-    /// time, counter-clockwise on screen for positive omega.
-    Vortex { cx: f32, cy: f32, omega: f32 },
+    /// time: velocity `omega * (-(y - cy), x - cx)`, clockwise on screen (y down) for
+    /// positive omega.
+    Vortex {
+        /// Centre x as a fraction of the output width (0.5 = middle).
+        cx: f32,
+        /// Centre y as a fraction of the output height (0.5 = middle).
+        cy: f32,
+        /// Angular velocity, radians per unit time.
+        omega: f32,
+    },
     /// Radial flow from `(cx, cy)` (negative strength: a sink); the speed is `strength`
     /// pixels per unit time at every radius beyond 8 pixels (and falls to 0 at the
     /// centre), so the texture stretches near the source.
-    Source { cx: f32, cy: f32, strength: f32 },
+    Source {
+        /// Source x as a fraction of the output width (0.5 = middle).
+        cx: f32,
+        /// Source y as a fraction of the output height (0.5 = middle).
+        cy: f32,
+        /// Outward speed beyond 8 pixels from the source, pixels per unit time; negative
+        /// flows inward.
+        strength: f32,
+    },
     /// A time-varying flow: a uniform drift of `speed` whose direction turns at `turn`
     /// radians per unit time, plus a travelling sine shear of amplitude `speed / 2`.
-    Gusts { speed: f32, turn: f32 },
+    Gusts {
+        /// Drift speed, pixels per unit time; the drift points along +x at time 0.
+        speed: f32,
+        /// Rate at which the drift direction turns, radians per unit time.
+        turn: f32,
+    },
     /// A user field: one velocity per pixel (row-major), pixels per unit time, of
     /// exactly the output's size.
     Map {
+        /// Width in pixels; must equal the output's.
         width: u32,
+        /// Height in pixels; must equal the output's.
         height: u32,
+        /// `width * height` velocities `[vx, vy]`, row-major, top row first, pixels per
+        /// unit time (y down).
         data: std::sync::Arc<Vec<[f32; 2]>>,
     },
 }
 
+/// Help text for the flow SPEC syntax parsed by `Flow`'s `FromStr` (`texsyn advect --flow`),
+/// with the preset defaults.
 pub const FLOW_HELP: &str = "\
 Velocity fields (pixels per unit time; a frame moves the texture by velocity * dt):
   uniform:VX,VY            the same everywhere
@@ -95,6 +128,8 @@ impl Flow {
         })
     }
 
+    /// Checks that every parameter (or every velocity of a map) is finite;
+    /// [`Error::InvalidParameter`] otherwise.
     pub fn validate(&self) -> Result<()> {
         let finite = |v: &[f32]| v.iter().all(|x| x.is_finite());
         let ok = match self {

@@ -127,7 +127,8 @@ fn exemplar_from(img: &DynamicImage, path: Option<&Path>) -> Result<Exemplar> {
             }
         }
         DynamicImage::ImageRgb32F(b) => {
-            check_float_samples(b.pixels().map(|p| [p.0[0], p.0[1], p.0[2]]), width).map_err(bad_floats)?;
+            check_float_samples(b.pixels().map(|p| [p.0[0], p.0[1], p.0[2]]), width)
+                .map_err(bad_floats)?;
             channels = 3;
             values = Vec::with_capacity(3 * n);
             for p in b.pixels() {
@@ -135,7 +136,8 @@ fn exemplar_from(img: &DynamicImage, path: Option<&Path>) -> Result<Exemplar> {
             }
         }
         DynamicImage::ImageRgba32F(b) => {
-            check_float_samples(b.pixels().map(|p| [p.0[0], p.0[1], p.0[2]]), width).map_err(bad_floats)?;
+            check_float_samples(b.pixels().map(|p| [p.0[0], p.0[1], p.0[2]]), width)
+                .map_err(bad_floats)?;
             channels = 3;
             values = Vec::with_capacity(3 * n);
             for p in b.pixels() {

@@ -20,3 +20,9 @@ pub use analysis::{Analysis, AnalysisOptions, Exemplar};
 pub use error::{Error, Result};
 pub use passes::{DistanceMode, SynthParams, Synthesis};
 pub use session::{Session, SessionBuilder, Texture};
+// The types an embedder names most, at the root.
+pub use field::{Field, FieldMap};
+pub use flow::Flow;
+pub use gpu::advect::{AdvectOptions, Advection};
+pub use gpu::synth::{GpuSynthesis, GpuSynthesizer};
+pub use gpu::GpuContext;

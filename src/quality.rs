@@ -48,10 +48,13 @@ fn invalid(msg: impl Into<String>) -> Error {
 /// A float image: row-major, `channels` values per pixel, values in `[0, 1]`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct FloatImage {
+    /// Width in pixels.
     pub width: u32,
+    /// Height in pixels.
     pub height: u32,
     /// 1 (grey) or 3 (RGB).
     pub channels: u32,
+    /// `width * height * channels` values, row-major, channels interleaved, in `[0, 1]`.
     pub data: Vec<f32>,
 }
 
@@ -527,8 +530,9 @@ pub fn texture_energy(exemplar: &FloatImage, output: &FloatImage, radius: u32) -
 /// `(x + r, y + r)`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct EnergyMap {
-    /// Windows per row and per column: the output size minus `2r`.
+    /// Windows per row: the output width minus `2r`.
     pub width: u32,
+    /// Windows per column: the output height minus `2r`.
     pub height: u32,
     /// Values per window (`(2r+1)^2 x channels`).
     pub dim: u32,
@@ -880,8 +884,11 @@ pub struct VerbatimStats {
 /// to output pixel `(x, y)`.
 #[derive(Clone, Copy, Debug)]
 pub struct CoordMap<'a> {
+    /// `width * height` exemplar pixel coordinates `[x, y]`, row-major.
     pub coords: &'a [[i32; 2]],
+    /// Output width in pixels.
     pub width: u32,
+    /// Output height in pixels.
     pub height: u32,
     /// Whether exemplar coordinates wrap around (tileable exemplar).
     pub tileable: bool,
@@ -1014,7 +1021,9 @@ impl UnionFind {
 pub struct QualityReport {
     /// Neighbourhood radius of the texture energy.
     pub radius: u32,
+    /// Exemplar `[width, height]` in pixels.
     pub exemplar_size: [u32; 2],
+    /// Output `[width, height]` in pixels.
     pub output_size: [u32; 2],
     /// Channels compared (after matching).
     pub channels: u32,
@@ -1091,8 +1100,9 @@ pub struct FeatureBreakage {
     /// The same share in the exemplar's own mask (the reference: a mask made of small
     /// spots has a high share without any breakage).
     pub exemplar_fragment_fraction: f64,
-    /// Fraction of output pixels that are feature, and of exemplar pixels.
+    /// Fraction of output pixels that are feature (in the synthesized mask).
     pub coverage: f64,
+    /// Fraction of exemplar pixels that are feature.
     pub exemplar_coverage: f64,
     /// Texture energy (7x7 windows) of the synthesized mask against the exemplar's
     /// mask, both as 0/1 images: feature shapes that never occur in the exemplar
@@ -1101,6 +1111,8 @@ pub struct FeatureBreakage {
 }
 
 impl FeatureBreakage {
+    /// JSON object with the fields above (same names) plus `min_fragment_pixels`
+    /// ([`MIN_FEATURE_FRAGMENT`]); non-finite numbers are `null`.
     pub fn to_json(&self) -> String {
         format!(
             "{{\"fragment_fraction\":{},\"exemplar_fragment_fraction\":{},\"coverage\":{},\"exemplar_coverage\":{},\"mask_energy\":{},\"min_fragment_pixels\":{}}}",
@@ -1444,6 +1456,7 @@ pub struct JacobianReport {
 }
 
 impl JacobianReport {
+    /// JSON object with the fields above (same names); non-finite numbers are `null`.
     pub fn to_json(&self) -> String {
         format!(
             "{{\"pixels\":{},\"tolerance\":{},\"within_all\":{},\"within_non_seam\":{},\"seam_fraction\":{},\"median_error_non_seam\":{},\"within_local\":{},\"strip_fraction\":{}}}",
@@ -1680,9 +1693,11 @@ pub struct TemporalReport {
 }
 
 impl TemporalReport {
+    /// Mean of [`warped_diff`](Self::warped_diff); 0 when empty.
     pub fn mean_warped_diff(&self) -> f64 {
         mean(&self.warped_diff)
     }
+    /// Mean of [`unwarped_diff`](Self::unwarped_diff); 0 when empty.
     pub fn mean_unwarped_diff(&self) -> f64 {
         mean(&self.unwarped_diff)
     }

@@ -42,11 +42,13 @@ pub struct SessionBuilder {
 /// An analysed exemplar on a GPU, ready to synthesize.
 pub struct Session {
     context: GpuContext,
-    synthesizer: GpuSynthesizer,
+    synthesizer: Arc<GpuSynthesizer>,
     params: SynthParams,
 }
 
 impl Session {
+    /// A builder: give it an exemplar (`exemplar_path`, `exemplar` or `analysis`), then
+    /// options, then [`SessionBuilder::build`].
     pub fn builder() -> SessionBuilder {
         SessionBuilder {
             source: Source::None,
@@ -88,19 +90,40 @@ impl Session {
         self.synthesizer.encode(&self.context, encoder, params)
     }
 
+    /// Starts texture advection (frame 0 is synthesized with the session's parameters,
+    /// made anisometric if they are not) on the session's device and exemplar; then call
+    /// [`Advection::step`](crate::gpu::advect::Advection::step) or
+    /// [`encode_step`](crate::gpu::advect::Advection::encode_step) once a frame.
+    pub fn advection(
+        &self,
+        options: crate::gpu::advect::AdvectOptions,
+    ) -> Result<crate::gpu::advect::Advection> {
+        crate::gpu::advect::Advection::new(
+            &self.context,
+            Arc::clone(&self.synthesizer),
+            &self.params,
+            options,
+        )
+    }
+
+    /// The exemplar analysis the session synthesizes from.
     pub fn analysis(&self) -> &Analysis {
         self.synthesizer.analysis()
     }
 
+    /// The GPU device and queue (the caller's, or a headless one).
     pub fn context(&self) -> &GpuContext {
         &self.context
     }
 
+    /// The parameters [`Self::run`] and [`Self::run_gpu`] use.
     pub fn params(&self) -> &SynthParams {
         &self.params
     }
 
-    pub fn synthesizer(&self) -> &GpuSynthesizer {
+    /// The synthesizer (the analysis uploaded to the GPU), shared: clone the `Arc` to
+    /// keep it beyond the session, e.g. for [`crate::gpu::advect::Advection::new`].
+    pub fn synthesizer(&self) -> &Arc<GpuSynthesizer> {
         &self.synthesizer
     }
 }
@@ -113,6 +136,7 @@ impl SessionBuilder {
         self
     }
 
+    /// An exemplar already in memory (e.g. [`Exemplar::from_rgba8`]).
     pub fn exemplar(mut self, exemplar: Exemplar) -> Self {
         self.source = Source::Exemplar(exemplar);
         self
@@ -124,6 +148,8 @@ impl SessionBuilder {
         self
     }
 
+    /// Analysis options (k, exclusion radius, tileability, feature mask, appearance
+    /// space); ignored when the source is an analysis.
     pub fn analysis_options(mut self, options: AnalysisOptions) -> Self {
         self.options = options;
         self
@@ -141,17 +167,20 @@ impl SessionBuilder {
         self
     }
 
+    /// All synthesis parameters at once (the other setters change single fields).
     pub fn params(mut self, params: SynthParams) -> Self {
         self.params = params;
         self
     }
 
+    /// Output size in pixels (default 256x256).
     pub fn size(mut self, width: u32, height: u32) -> Self {
         self.params.width = width;
         self.params.height = height;
         self
     }
 
+    /// Random seed (default 1): the same seed gives the same bytes.
     pub fn seed(mut self, seed: u32) -> Self {
         self.params.seed = seed;
         self
@@ -163,6 +192,7 @@ impl SessionBuilder {
         self
     }
 
+    /// Correction passes per coarse level (default 4; see [`SynthParams::passes`]).
     pub fn passes(mut self, passes: u32) -> Self {
         self.params.passes = passes;
         self
@@ -198,6 +228,8 @@ impl SessionBuilder {
         self
     }
 
+    /// Loads and analyses the exemplar (unless given an analysis), creates or takes the
+    /// GPU context, checks the parameters and uploads the tables.
     pub fn build(self) -> Result<Session> {
         let mut progress = self.progress;
         let mut report = |p: Progress| {
@@ -233,7 +265,7 @@ impl SessionBuilder {
         };
         // Validate the parameters before uploading.
         crate::passes::SynthPlan::new(&analysis, &self.params)?;
-        let synthesizer = GpuSynthesizer::new(&context, Arc::new(analysis))?;
+        let synthesizer = Arc::new(GpuSynthesizer::new(&context, Arc::new(analysis))?);
         Ok(Session {
             context,
             synthesizer,
@@ -259,17 +291,22 @@ pub fn load_source(
 /// A synthesized texture on the host.
 #[derive(Clone, Debug)]
 pub struct Texture {
+    /// Colours and exemplar coordinates, read back from the GPU.
     pub synthesis: Synthesis,
     /// 1 for grey exemplars, 3 for colour.
     pub channels: u32,
+    /// Width and height of the (analysed) exemplar, in pixels.
     pub exemplar_size: [u32; 2],
+    /// Whether the exemplar was handled as tileable (coordinates wrap around it).
     pub tileable: bool,
 }
 
 impl Texture {
+    /// Width in pixels.
     pub fn width(&self) -> u32 {
         self.synthesis.width
     }
+    /// Height in pixels.
     pub fn height(&self) -> u32 {
         self.synthesis.height
     }

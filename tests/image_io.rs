@@ -138,16 +138,36 @@ fn format_is_decided_by_content() {
 }
 
 #[test]
-fn float_exemplar_is_clamped() {
-    let img = DynamicImage::ImageRgb32F(ImageBuffer::from_fn(16, 16, |x, _| {
-        Rgb([x as f32 / 10.0 - 0.3, 0.5, f32::NAN])
+fn float_exemplar_is_clamped_or_refused() {
+    // A few samples slightly out of [0, 1] (compression ringing): clamped.
+    let img = DynamicImage::ImageRgb32F(ImageBuffer::from_fn(16, 16, |x, y| {
+        let r = match (x, y) {
+            (0, 0) => -0.1,
+            (15, 0) => 1.2,
+            _ => x as f32 / 15.0,
+        };
+        Rgb([r, 0.5, 0.25])
     }));
     let ex = exemplar_from_image(&img).unwrap();
     assert_eq!(ex.channels, 3);
     assert!(ex.values.iter().all(|v| (0.0..=1.0).contains(v)));
-    assert_eq!(&ex.values[0..3], &[0.0, 0.5, 0.0]);
+    assert_eq!(&ex.values[0..3], &[0.0, 0.5, 0.25]);
     assert_eq!(ex.values[15 * 3], 1.0);
-    assert_eq!(ex.colors[15], [255, 128, 0, 255]);
+    assert_eq!(ex.colors[15], [255, 128, 64, 255]);
+
+    // NaN: an error naming the pixel.
+    let nan = DynamicImage::ImageRgb32F(ImageBuffer::from_fn(16, 16, |x, y| {
+        Rgb([0.5, if (x, y) == (3, 2) { f32::NAN } else { 0.5 }, 0.5])
+    }));
+    let err = exemplar_from_image(&nan).unwrap_err().to_string();
+    assert!(err.contains("(3, 2)") && err.contains("NaN"), "{err}");
+
+    // An HDR image (most samples above 1): refused with what to do, not washed out.
+    let hdr = DynamicImage::ImageRgba32F(ImageBuffer::from_fn(16, 16, |x, _| {
+        image::Rgba([x as f32 * 3.0, 0.5, 0.5, 1.0])
+    }));
+    let err = exemplar_from_image(&hdr).unwrap_err().to_string();
+    assert!(err.contains("tone-map"), "{err}");
 }
 
 #[test]

@@ -44,6 +44,84 @@ pub struct Exemplar {
     pub colors: Vec<[u8; 4]>,
 }
 
+impl Exemplar {
+    /// An exemplar from 8-bit RGBA pixels (row-major, 4 bytes a pixel, sRGB-encoded as
+    /// images usually are; alpha is ignored): 3 channels. For grey or 16-bit/float data,
+    /// build an `image::DynamicImage` and use [`crate::image_io::exemplar_from_image`].
+    /// Errors: a buffer of the wrong length, or a size below [`MIN_EXEMPLAR_SIZE`].
+    pub fn from_rgba8(width: u32, height: u32, rgba: &[u8]) -> Result<Exemplar> {
+        let n = width as usize * height as usize;
+        if rgba.len() != n * 4 {
+            return Err(Error::InvalidParameter(format!(
+                "exemplar: {} bytes given for {width}x{height} RGBA8 pixels ({} expected)",
+                rgba.len(),
+                n * 4
+            )));
+        }
+        check_exemplar_size(width, height)?;
+        let colors: Vec<[u8; 4]> = rgba
+            .chunks_exact(4)
+            .map(|p| [p[0], p[1], p[2], 255])
+            .collect();
+        let values = colors
+            .iter()
+            .flat_map(|p| [p[0], p[1], p[2]].map(|v| v as f32 / 255.0))
+            .collect();
+        Ok(Exemplar {
+            width,
+            height,
+            channels: 3,
+            values,
+            colors,
+        })
+    }
+
+    /// Checks that the public fields agree (sizes, channel count, finite values in
+    /// [0, 1]); [`analyze`] calls it, so a hand-built exemplar fails with a clear error.
+    pub fn check(&self) -> Result<()> {
+        check_exemplar_size(self.width, self.height)?;
+        let n = self.width as usize * self.height as usize;
+        if self.channels != 1 && self.channels != 3 {
+            return Err(Error::InvalidParameter(format!(
+                "exemplar: {} channels; it must have 1 (grey) or 3 (RGB)",
+                self.channels
+            )));
+        }
+        if self.values.len() != n * self.channels as usize {
+            return Err(Error::InvalidParameter(format!(
+                "exemplar: {} values for {}x{} pixels of {} channel(s) ({} expected)",
+                self.values.len(),
+                self.width,
+                self.height,
+                self.channels,
+                n * self.channels as usize
+            )));
+        }
+        if self.colors.len() != n {
+            return Err(Error::InvalidParameter(format!(
+                "exemplar: {} colours for {}x{} pixels",
+                self.colors.len(),
+                self.width,
+                self.height
+            )));
+        }
+        if let Some(i) = self
+            .values
+            .iter()
+            .position(|v| !(v.is_finite() && (0.0..=1.0).contains(v)))
+        {
+            let px = i / self.channels as usize;
+            return Err(Error::InvalidParameter(format!(
+                "exemplar: value {} at pixel ({}, {}) is not a number in [0, 1]",
+                self.values[i],
+                px % self.width as usize,
+                px / self.width as usize
+            )));
+        }
+        Ok(())
+    }
+}
+
 /// What a pixel's appearance vector holds before the PCA to 8D.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum AppearanceSpace {
@@ -273,6 +351,10 @@ pub fn par_ranges<T: Send>(
 /// exemplar does not contain; those at 0.5-0.95 (pink marble, walnut, leopard) are
 /// better wrapped (e.g. pink marble 0.65 wrapped, 0.81-0.85 not).
 pub fn detect_tileable(ex: &Exemplar) -> bool {
+    // An inconsistent hand-built exemplar is not tileable (analyze reports why).
+    if ex.check().is_err() {
+        return false;
+    }
     let (w, h, c) = (ex.width as usize, ex.height as usize, ex.channels as usize);
     let px = |x: usize, y: usize| &ex.values[(y * w + x) * c..(y * w + x + 1) * c];
     let d2 = |a: &[f32], b: &[f32]| {
@@ -322,7 +404,7 @@ pub fn analyze(
     opts: &AnalysisOptions,
     mut progress: impl FnMut(Progress),
 ) -> Result<Analysis> {
-    check_exemplar_size(ex.width, ex.height)?;
+    ex.check()?;
     if opts.k == 0 || opts.k > MAX_K {
         return Err(Error::InvalidParameter(format!(
             "k = {}: the similarity-set size must be between 1 and {MAX_K}",

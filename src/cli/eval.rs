@@ -241,7 +241,7 @@ pub fn run(ui: &Ui, args: EvalArgs) -> CliResult<()> {
         json_number(wrap_seam)
     ));
     if let (Some(mask), Some((w, h, c))) = (&mask, &coords) {
-        let b = quality::feature_breakage(&mask, c, *w, *h, tileable)?;
+        let b = quality::feature_breakage(mask, c, *w, *h, tileable)?;
         json.pop();
         json.push_str(&format!(",\"features\":{}}}", b.to_json()));
     }

@@ -263,9 +263,16 @@ impl Advection {
         self.options
     }
 
-    /// The current colours (`Rgba8Unorm`; storage, texture binding, copy source).
+    /// The current colours (`Rgba8Unorm` holding sRGB-encoded bytes; storage, texture
+    /// binding, copy source). [`Self::srgb_view`] samples them as linear colours.
     pub fn texture(&self) -> &wgpu::Texture {
         &self.output.texture
+    }
+
+    /// An sRGB view of [`Self::texture`] for sampling (see
+    /// [`GpuSynthesis::srgb_view`]); `None` on the GL backend.
+    pub fn srgb_view(&self, ctx: &GpuContext) -> Option<wgpu::TextureView> {
+        self.output.srgb_view(ctx)
     }
 
     /// Changes synthesis parameters between frames (randomness, passes, coherence,
@@ -355,9 +362,12 @@ impl Advection {
         Ok(())
     }
 
-    /// One frame from a velocity buffer the caller owns (`vec2<f32>` per output pixel,
-    /// usage STORAGE), recorded into the caller's encoder: nothing goes through the host.
-    /// Non-finite velocities count as 0.
+    /// One frame from a velocity buffer the caller owns, recorded into the caller's
+    /// encoder: nothing goes through the host. The buffer holds one `vec2<f32>` (output
+    /// pixels per unit of time) per output pixel, row-major with a stride of the output's
+    /// width; only its first `width * height` entries are read. It must come from the
+    /// same device and have usage STORAGE. Non-finite velocities count as 0. Every check
+    /// runs before anything is recorded, so an error leaves the encoder usable.
     pub fn encode_step(
         &mut self,
         ctx: &GpuContext,
@@ -372,6 +382,13 @@ impl Advection {
                 "velocity buffer holds {} bytes; the output needs {} (vec2<f32> per pixel)",
                 velocity.size(),
                 n * 8
+            )));
+        }
+        if !velocity.usage().contains(wgpu::BufferUsages::STORAGE) {
+            return Err(Error::InvalidParameter(format!(
+                "the velocity buffer's usage is {:?}; create it with BufferUsages::STORAGE \
+                 (it is read by a compute shader)",
+                velocity.usage()
             )));
         }
         ctx.scoped(|| {

@@ -160,6 +160,12 @@ impl GpuContext {
         Self::wrap(device, queue, info)
     }
 
+    /// Whether textures can be viewed in another format (sRGB views of the output):
+    /// every backend but GL (wgpu's `DownlevelFlags::VIEW_FORMATS`).
+    pub fn supports_view_formats(&self) -> bool {
+        self.adapter_info.backend != wgpu::Backend::Gl
+    }
+
     fn wrap(device: wgpu::Device, queue: wgpu::Queue, adapter_info: wgpu::AdapterInfo) -> Self {
         let uncaptured = Arc::new(Mutex::new(Vec::new()));
         let sink = Arc::clone(&uncaptured);

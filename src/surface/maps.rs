@@ -31,14 +31,17 @@ struct Tri {
 /// What building the maps found, for reporting.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct MapsReport {
-    /// Per level, finest first: chart texels, gutter entries.
+    /// Per level, finest first: texels inside a chart.
     pub inside: Vec<usize>,
+    /// Per level, finest first: gutter texels given an indirection entry.
     pub entries: Vec<usize>,
     /// Of which in the 2-texel band refilled after every pass.
     pub band: Vec<usize>,
-    /// Walks that crossed at least one chart seam, ended on a mesh boundary, or gave up.
+    /// Gutter walks (all levels) that crossed at least one chart seam.
     pub crossed: usize,
+    /// Gutter walks that stopped on a mesh boundary or an edge they could not unfold across.
     pub boundary: usize,
+    /// Gutter walks that gave up (still short of their target after 256 triangles).
     pub gave_up: usize,
     /// Texels whose Jacobian had to be clamped to the supported stretch (1/8..8).
     pub clamped: usize,
@@ -303,11 +306,17 @@ fn nearest_sites(ids: &[u32], size: usize) -> Vec<u32> {
 
 /// Where a walk over the surface ended.
 pub struct WalkEnd {
-    /// Triangle and point in its own chart's atlas texels (finest level).
+    /// Triangle the walk ended in (index into the atlas mesh).
     pub tri: u32,
+    /// End point in `tri`'s chart's atlas texels (finest level): the target, or where
+    /// the walk stopped.
     pub point: Vec2,
+    /// Whether the walk crossed at least one chart seam (unfolding into another chart).
     pub crossed: bool,
+    /// Whether it stopped early on a mesh boundary, a non-manifold edge or a degenerate
+    /// triangle; `point` is then on the edge where it stopped.
     pub boundary: bool,
+    /// Whether it gave up after 256 triangles without reaching the target.
     pub gave_up: bool,
 }
 
@@ -482,6 +491,7 @@ pub struct SurfaceGeometry {
 }
 
 impl SurfaceGeometry {
+    /// Per-triangle atlas corners, `Jf` and triangle adjacency of `atlas`'s mesh.
     pub fn new(atlas: &Atlas) -> Self {
         let mesh = &atlas.mesh;
         let tris = (0..mesh.triangles.len())
@@ -520,7 +530,10 @@ impl SurfaceGeometry {
         (tri.uv, tri.uv_area, tri.jf)
     }
 
-    /// [`walk`] over this atlas.
+    /// Walks the straight segment from `from` (inside triangle `start`) to `to`, both in
+    /// `start`'s chart's atlas texels (finest level), over the surface of `atlas`: across a
+    /// chart seam the next triangle is unfolded about the shared edge and the segment
+    /// continues in that chart's frame. `atlas` must be the one this geometry was built from.
     pub fn walk(&self, atlas: &Atlas, start: u32, from: Vec2, to: Vec2) -> WalkEnd {
         walk(
             &self.tris,

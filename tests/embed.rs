@@ -1,0 +1,247 @@
+//! The embedding API as a host application uses it: exemplars built in memory, the
+//! output sampled as sRGB, advection from a session, and misuse that must fail cleanly
+//! without spoiling the caller's command encoder.
+
+use texsyn::{AdvectOptions, Error, Exemplar, Session};
+
+fn gravel() -> Exemplar {
+    texsyn::image_io::load_exemplar(
+        concat!(env!("CARGO_MANIFEST_DIR"), "/assets/gravel.png").as_ref(),
+    )
+    .expect("assets/gravel.png")
+}
+
+/// The top-left 48x48 pixels of the gravel exemplar as an RGBA8 buffer.
+fn gravel_rgba8_crop() -> Vec<u8> {
+    let ex = gravel();
+    let mut out = Vec::new();
+    for y in 0..48 {
+        for x in 0..48 {
+            out.extend(ex.colors[(y * ex.width + x) as usize]);
+        }
+    }
+    out
+}
+
+#[test]
+fn exemplars_built_in_memory_are_checked() {
+    let rgba = gravel_rgba8_crop();
+    let ex = Exemplar::from_rgba8(48, 48, &rgba).expect("a consistent exemplar");
+    assert_eq!((ex.width, ex.height, ex.channels), (48, 48, 3));
+    assert_eq!(ex.values.len(), 48 * 48 * 3);
+    ex.check().expect("from_rgba8 is consistent");
+    assert!(matches!(
+        Exemplar::from_rgba8(48, 48, &rgba[4..]),
+        Err(Error::InvalidParameter(_))
+    ));
+
+    // Hand-built exemplars whose fields disagree: errors, not panics.
+    let bad = [
+        Exemplar {
+            values: vec![0.5; 10],
+            ..ex.clone()
+        },
+        Exemplar {
+            colors: vec![[0; 4]; 5],
+            ..ex.clone()
+        },
+        Exemplar {
+            channels: 4,
+            ..ex.clone()
+        },
+        Exemplar {
+            values: {
+                let mut v = ex.values.clone();
+                v[7] = f32::NAN;
+                v
+            },
+            ..ex.clone()
+        },
+    ];
+    for b in bad {
+        let err = b.check().expect_err("inconsistent exemplar accepted");
+        println!("{err}");
+        assert!(!texsyn::analysis::detect_tileable(&b));
+        let analysed = texsyn::analysis::analyze(&b, &Default::default(), |_| {});
+        assert!(matches!(analysed, Err(Error::InvalidParameter(_))));
+    }
+}
+
+/// Reads texels of `view` through a compute shader as the hardware samples them.
+fn load_texels(ctx: &texsyn::GpuContext, view: &wgpu::TextureView, n: u32) -> Vec<[f32; 4]> {
+    let device = &ctx.device;
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some("load texels"),
+        source: wgpu::ShaderSource::Wgsl(
+            "@group(0) @binding(0) var t: texture_2d<f32>;
+             @group(0) @binding(1) var<storage, read_write> out: array<vec4<f32>>;
+             @compute @workgroup_size(8, 8)
+             fn main(@builtin(global_invocation_id) g: vec3<u32>) {
+                 let n = textureDimensions(t);
+                 if (g.x < n.x && g.y < n.y) {
+                     out[g.y * n.x + g.x] = textureLoad(t, vec2<u32>(g.xy), 0);
+                 }
+             }"
+            .into(),
+        ),
+    });
+    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: None,
+        layout: None,
+        module: &module,
+        entry_point: Some("main"),
+        compilation_options: Default::default(),
+        cache: None,
+    });
+    let size = n as u64 * n as u64 * 16;
+    let out = device.create_buffer(&wgpu::BufferDescriptor {
+        label: None,
+        size,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    });
+    let read = device.create_buffer(&wgpu::BufferDescriptor {
+        label: None,
+        size,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: None,
+        layout: &pipeline.get_bind_group_layout(0),
+        entries: &[
+            wgpu::BindGroupEntry {
+                binding: 0,
+                resource: wgpu::BindingResource::TextureView(view),
+            },
+            wgpu::BindGroupEntry {
+                binding: 1,
+                resource: out.as_entire_binding(),
+            },
+        ],
+    });
+    let mut encoder = device.create_command_encoder(&Default::default());
+    {
+        let mut pass = encoder.begin_compute_pass(&Default::default());
+        pass.set_pipeline(&pipeline);
+        pass.set_bind_group(0, &group, &[]);
+        pass.dispatch_workgroups(n.div_ceil(8), n.div_ceil(8), 1);
+    }
+    encoder.copy_buffer_to_buffer(&out, 0, &read, 0, size);
+    ctx.queue.submit([encoder.finish()]);
+    read.slice(..)
+        .map_async(wgpu::MapMode::Read, |r| r.unwrap());
+    device.poll(wgpu::PollType::wait_indefinitely()).unwrap();
+    let range = read.slice(..).get_mapped_range().expect("mapped");
+    let data: Vec<[f32; 4]> = bytemuck::cast_slice(&range).to_vec();
+    drop(range);
+    data
+}
+
+fn srgb_to_linear(v: u8) -> f32 {
+    let c = v as f32 / 255.0;
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+#[test]
+fn the_output_can_be_sampled_as_srgb() {
+    let session = Session::builder()
+        .exemplar(Exemplar::from_rgba8(48, 48, &gravel_rgba8_crop()).unwrap())
+        .size(32, 32)
+        .build()
+        .expect("session");
+    let ctx = session.context();
+    let gpu = session.run_gpu().expect("synthesis");
+    let bytes = gpu.read_rgba8(ctx).expect("read-back");
+    let Some(view) = gpu.srgb_view(ctx) else {
+        assert_eq!(ctx.adapter_info.backend, wgpu::Backend::Gl);
+        return;
+    };
+    let linear = load_texels(ctx, &view, 32);
+    let mut worst = 0f32;
+    for (texel, px) in linear.iter().zip(bytes.chunks(4)) {
+        for c in 0..3 {
+            worst = worst.max((texel[c] - srgb_to_linear(px[c])).abs());
+        }
+    }
+    // The stored bytes are sRGB-encoded: the view decodes them (dark values differ
+    // most from a plain /255, so a non-decoding view would fail this).
+    assert!(
+        worst < 2e-3,
+        "largest difference from the sRGB decode: {worst}"
+    );
+    let plain = gpu.texture.create_view(&Default::default());
+    let raw = load_texels(ctx, &plain, 32);
+    assert!(raw
+        .iter()
+        .zip(bytes.chunks(4))
+        .all(|(t, p)| (t[0] - p[0] as f32 / 255.0).abs() < 1e-3));
+    ctx.take_uncaptured_errors().expect("no wgpu errors");
+}
+
+#[test]
+fn advection_from_a_session_and_a_bad_velocity_buffer() {
+    let session = Session::builder()
+        .exemplar(Exemplar::from_rgba8(48, 48, &gravel_rgba8_crop()).unwrap())
+        .size(32, 32)
+        .seed(3)
+        .build()
+        .expect("session");
+    let ctx = session.context();
+    let mut advection = session
+        .advection(AdvectOptions::default())
+        .expect("advection");
+
+    // A velocity buffer without STORAGE usage: an error before anything is recorded,
+    // so the caller's encoder still finishes and submits cleanly.
+    let unusable = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("no storage usage"),
+        size: 32 * 32 * 8,
+        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::VERTEX,
+        mapped_at_creation: false,
+    });
+    let mut encoder = ctx.device.create_command_encoder(&Default::default());
+    let err = advection
+        .encode_step(ctx, &mut encoder, &unusable, 1.0)
+        .expect_err("a buffer without STORAGE usage was accepted");
+    assert!(err.to_string().contains("STORAGE"), "{err}");
+    ctx.queue.submit([encoder.finish()]);
+    ctx.take_uncaptured_errors()
+        .expect("the caller's encoder was spoiled");
+
+    // A proper buffer: a uniform flow of 2 pixels moves the texture by 2 pixels.
+    let before = advection.read_rgba8(ctx).unwrap();
+    let velocity = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("velocity"),
+        size: 32 * 32 * 8,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    ctx.queue.write_buffer(
+        &velocity,
+        0,
+        bytemuck::cast_slice(&vec![[2f32, 0.0]; 32 * 32]),
+    );
+    let mut encoder = ctx.device.create_command_encoder(&Default::default());
+    advection
+        .encode_step(ctx, &mut encoder, &velocity, 1.0)
+        .expect("step");
+    ctx.queue.submit([encoder.finish()]);
+    let after = advection.read_rgba8(ctx).unwrap();
+    let px = |b: &[u8], x: usize, y: usize| b[(y * 32 + x) * 4..][..4].to_vec();
+    let same = (0..32)
+        .flat_map(|y| (2..32).map(move |x| (x, y)))
+        .filter(|&(x, y)| px(&after, x, y) == px(&before, x - 2, y))
+        .count();
+    assert!(
+        same * 10 > 30 * 32 * 8,
+        "only {same} of {} pixels moved with the flow",
+        30 * 32
+    );
+    assert!(advection.srgb_view(ctx).is_some() || ctx.adapter_info.backend == wgpu::Backend::Gl);
+    ctx.take_uncaptured_errors().expect("no wgpu errors");
+}
