@@ -1693,21 +1693,27 @@ pub struct TemporalReport {
 }
 
 impl TemporalReport {
-    /// Mean of [`warped_diff`](Self::warped_diff); 0 when empty.
+    /// Mean of [`warped_diff`](Self::warped_diff) over the pairs it could be measured on
+    /// (NaN entries skipped; NaN if none could, 0 when empty).
     pub fn mean_warped_diff(&self) -> f64 {
         mean(&self.warped_diff)
     }
-    /// Mean of [`unwarped_diff`](Self::unwarped_diff); 0 when empty.
+    /// Mean of [`unwarped_diff`](Self::unwarped_diff) (as for the warped one).
     pub fn mean_unwarped_diff(&self) -> f64 {
         mean(&self.unwarped_diff)
     }
 }
 
 fn mean(v: &[f64]) -> f64 {
-    if v.is_empty() {
-        0.0
+    let finite: Vec<f64> = v.iter().copied().filter(|x| x.is_finite()).collect();
+    if finite.is_empty() {
+        if v.is_empty() {
+            0.0
+        } else {
+            f64::NAN
+        }
     } else {
-        v.iter().sum::<f64>() / v.len() as f64
+        finite.iter().sum::<f64>() / finite.len() as f64
     }
 }
 
@@ -1731,7 +1737,8 @@ pub fn high_frequency_energy(img: &FloatImage) -> f64 {
 
 /// Mean absolute difference between `cur` and `prev` sampled bilinearly at `p - d(p)`
 /// (grey, 0-1), over the pixels at least `margin` from the border whose source lies
-/// inside `prev`.
+/// inside `prev`; NaN when there is no such pixel (the flow moved everything out of
+/// view), which the means of [`TemporalReport`] skip.
 pub fn warped_difference(prev: &FloatImage, cur: &FloatImage, d: &[[f32; 2]], margin: u32) -> f64 {
     let (a, b) = (prev.to_grey(), cur.to_grey());
     let (w, h) = (b.width as usize, b.height as usize);
@@ -1756,7 +1763,10 @@ pub fn warped_difference(prev: &FloatImage, cur: &FloatImage, d: &[[f32; 2]], ma
             n += 1;
         }
     }
-    sum / n.max(1) as f64
+    if n == 0 {
+        return f64::NAN;
+    }
+    sum / n as f64
 }
 
 /// The temporal figures of `frames` advected by `displacement(t)` (per-pixel motion
@@ -1768,22 +1778,82 @@ pub fn temporal_report(
     displacement: impl Fn(usize) -> Vec<[f32; 2]>,
     energy_every: usize,
 ) -> Result<TemporalReport> {
-    let mut r = TemporalReport::default();
-    let ex_hf = high_frequency_energy(exemplar).max(1e-12);
-    let zero = vec![[0.0f32; 2]; frames.first().map_or(0, |f| (f.width * f.height) as usize)];
+    let mut figures = TemporalFigures::new(exemplar, energy_every);
     for (t, f) in frames.iter().enumerate() {
-        r.sharpness.push(high_frequency_energy(f) / ex_hf);
-        if t > 0 {
-            r.warped_diff
-                .push(warped_difference(&frames[t - 1], f, &displacement(t), 4));
-            r.unwarped_diff
-                .push(warped_difference(&frames[t - 1], f, &zero, 4));
-        }
-        if t % energy_every.max(1) == 0 || t + 1 == frames.len() {
-            r.energy.push((t, texture_energy(exemplar, f, 2)?));
+        let d = if t > 0 { displacement(t) } else { Vec::new() };
+        figures.push(f.clone(), &d)?;
+    }
+    figures.finish()
+}
+
+/// [`temporal_report`] one frame at a time, keeping only the previous and the last
+/// frame: memory stays flat however many frames an advection runs.
+pub struct TemporalFigures {
+    exemplar: FloatImage,
+    exemplar_hf: f64,
+    every: usize,
+    report: TemporalReport,
+    prev: Option<FloatImage>,
+    /// Frame index of `prev`, and whether its energy is already in the report.
+    prev_index: usize,
+    prev_has_energy: bool,
+}
+
+impl TemporalFigures {
+    /// Figures against `exemplar`, texture energy every `energy_every` frames (frame 0
+    /// included; the last one is added by [`Self::finish`]).
+    pub fn new(exemplar: &FloatImage, energy_every: usize) -> Self {
+        Self {
+            exemplar: exemplar.clone(),
+            exemplar_hf: high_frequency_energy(exemplar).max(1e-12),
+            every: energy_every.max(1),
+            report: TemporalReport::default(),
+            prev: None,
+            prev_index: 0,
+            prev_has_energy: false,
         }
     }
-    Ok(r)
+
+    /// The next frame, with the displacement (pixels) that carried the previous frame to
+    /// it (ignored for the first frame).
+    pub fn push(&mut self, frame: FloatImage, displacement: &[[f32; 2]]) -> Result<()> {
+        let t = match &self.prev {
+            None => 0,
+            Some(_) => self.prev_index + 1,
+        };
+        self.report
+            .sharpness
+            .push(high_frequency_energy(&frame) / self.exemplar_hf);
+        if let Some(prev) = &self.prev {
+            let zero = vec![[0.0f32; 2]; (frame.width * frame.height) as usize];
+            self.report
+                .warped_diff
+                .push(warped_difference(prev, &frame, displacement, 4));
+            self.report
+                .unwarped_diff
+                .push(warped_difference(prev, &frame, &zero, 4));
+        }
+        let energy = t % self.every == 0;
+        if energy {
+            self.report
+                .energy
+                .push((t, texture_energy(&self.exemplar, &frame, 2)?));
+        }
+        self.prev = Some(frame);
+        self.prev_index = t;
+        self.prev_has_energy = energy;
+        Ok(())
+    }
+
+    /// The report, with the last frame's texture energy.
+    pub fn finish(mut self) -> Result<TemporalReport> {
+        if let (Some(last), false) = (&self.prev, self.prev_has_energy) {
+            self.report
+                .energy
+                .push((self.prev_index, texture_energy(&self.exemplar, last, 2)?));
+        }
+        Ok(self.report)
+    }
 }
 
 #[cfg(test)]

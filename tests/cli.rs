@@ -1040,3 +1040,126 @@ fn controls_end_to_end_and_their_bad_inputs() {
     let json = ok(&dir, &["eval", GRAVEL, "t.png"]);
     assert!(json.contains("\"wrap_seam_ratio\":"), "{json}");
 }
+
+/// Defects found by a bad-input review (2026-11-24): each must fail cleanly or be
+/// handled, leaving nothing behind.
+#[test]
+fn review_findings_fail_cleanly() {
+    let dir = TempDir::new("review");
+    // eval --energy-map with a feature mask of the wrong size: no map left behind.
+    ok(
+        &dir,
+        &[
+            "synth",
+            GRAVEL,
+            "-o",
+            "s.png",
+            "--size",
+            "32",
+            "--coords-out",
+            "s.exr",
+            "-q",
+        ],
+    );
+    image::GrayImage::from_pixel(16, 16, image::Luma([255]))
+        .save(dir.path("mask16.png"))
+        .unwrap();
+    fails(
+        &dir,
+        &[
+            "eval",
+            GRAVEL,
+            "s.png",
+            "--coords",
+            "s.exr",
+            "--feature-mask",
+            "mask16.png",
+            "--energy-map",
+            "em.png",
+        ],
+        1,
+        "16x16",
+    );
+
+    // An HDR exemplar is refused with what to do; NaN samples name the pixel.
+    let hdr = image::Rgb32FImage::from_fn(32, 32, |x, y| image::Rgb([x as f32, y as f32, 0.5]));
+    image::DynamicImage::ImageRgb32F(hdr)
+        .save(dir.path("hdr.exr"))
+        .unwrap();
+    fails(
+        &dir,
+        &["synth", "hdr.exr", "-o", "h.png", "--size", "32"],
+        1,
+        "tone-map",
+    );
+
+    // advect: --field does not apply to a mesh (usage error); bad options are refused
+    // before the analysis; a staging folder of a killed run is cleaned up.
+    fails(
+        &dir,
+        &[
+            "advect",
+            GRAVEL,
+            "--flow",
+            "vortex",
+            "--mesh",
+            "m.glb",
+            "--field",
+            "rotate:30",
+            "-o",
+            "frames",
+        ],
+        2,
+        "cannot be used with",
+    );
+    let start = std::time::Instant::now();
+    fails(
+        &dir,
+        &[
+            "advect", GRAVEL, "--flow", "vortex", "--levels", "0", "-o", "frames",
+        ],
+        1,
+        "levels",
+    );
+    assert!(
+        start.elapsed().as_secs_f64() < 5.0,
+        "checked after the analysis"
+    );
+    // PIDs never exceed 2^22 on Linux: this staging folder belongs to no live process.
+    std::fs::create_dir(dir.path(".frames.partial-4194305")).unwrap();
+    ok(
+        &dir,
+        &[
+            "advect",
+            GRAVEL,
+            "--flow",
+            "uniform:1,0",
+            "--frames",
+            "2",
+            "--size",
+            "16",
+            "-o",
+            "frames",
+            "-q",
+        ],
+    );
+    if Path::new("/proc/self").exists() {
+        assert!(!dir.path(".frames.partial-4194305").exists());
+    }
+    assert!(dir.path("frames/frame_00002.png").exists());
+
+    // A flow that moves everything out of view has no warped difference (null), not 0.
+    let json = ok(
+        &dir,
+        &[
+            "eval",
+            GRAVEL,
+            "frames",
+            "--flow",
+            "uniform:1,0",
+            "--dt",
+            "1000",
+        ],
+    );
+    assert!(json.contains("\"mean_warped_diff\":null"), "{json}");
+}

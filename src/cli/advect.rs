@@ -45,8 +45,9 @@ pub struct AdvectArgs {
     #[arg(short, long, value_name = "DIR|OUT.png|OUT.gif")]
     pub output: PathBuf,
 
-    /// Output size (2D)
-    #[arg(long, value_name = "N[xM]", value_parser = parse_size, default_value = "256")]
+    /// Output size (2D; with --mesh the atlas size is --atlas-size)
+    #[arg(long, value_name = "N[xM]", value_parser = parse_size, default_value = "256",
+          conflicts_with = "mesh")]
     pub size: [u32; 2],
 
     /// Time step: a frame moves the texture by velocity * dt
@@ -76,8 +77,10 @@ pub struct AdvectArgs {
     #[arg(long)]
     pub bilinear: bool,
 
-    /// Jacobian field the texture follows (2D; see `texsyn synth --help`)
-    #[arg(long, value_name = "SPEC", value_parser = parse_field, long_help = FIELD_HELP)]
+    /// Jacobian field the texture follows (2D; see `texsyn synth --help`; on a mesh the
+    /// surface's tangent frames orient the texture)
+    #[arg(long, value_name = "SPEC", value_parser = parse_field, long_help = FIELD_HELP,
+          conflicts_with = "mesh")]
     pub field: Option<FieldSpec>,
 
     /// Random seed of the first frame's synthesis (as for synth)
@@ -166,11 +169,9 @@ impl Staging {
                 parent.display()
             )));
         }
-        let dir = parent.join(format!(
-            ".{}.partial-{}",
-            name.to_string_lossy(),
-            std::process::id()
-        ));
+        let prefix = format!(".{}.partial-", name.to_string_lossy());
+        remove_stale_staging(&parent, &prefix);
+        let dir = parent.join(format!("{prefix}{}", std::process::id()));
         std::fs::create_dir(&dir).map_err(|e| {
             fail(format!(
                 "cannot create the folder {}: {e}",
@@ -203,6 +204,31 @@ impl Staging {
         }
         self.committed = true;
         Ok(())
+    }
+}
+
+/// Staging folders of runs that were killed (Ctrl-C does not run destructors): those
+/// whose process is gone are removed. Only where that can be told (`/proc`, Linux).
+fn remove_stale_staging(parent: &Path, prefix: &str) {
+    let proc = Path::new("/proc/self");
+    if !proc.exists() {
+        return;
+    }
+    let Ok(entries) = std::fs::read_dir(parent) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let Some(pid) = name
+            .to_str()
+            .and_then(|n| n.strip_prefix(prefix))
+            .and_then(|p| p.parse::<u32>().ok())
+        else {
+            continue;
+        };
+        if !Path::new("/proc").join(pid.to_string()).exists() {
+            let _ = std::fs::remove_dir_all(entry.path());
+        }
     }
 }
 
@@ -259,6 +285,18 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
     };
     let flow = args.flow.load()?;
     flow.validate()?;
+    let options = AdvectOptions {
+        levels: args.levels,
+        threshold: args.threshold,
+        passes: args.passes,
+        nearest: !args.bilinear,
+    };
+    options.check()?;
+    // A flow image must have the output's size (on a mesh it is refused by the atlas
+    // projection): checked before the analysis.
+    if args.mesh.is_none() {
+        flow.sample(args.size[0], args.size[1], 0.0)?;
+    }
     // The temporal figures printed at the end use 5x5 windows: refuse what they cannot
     // measure before any frame is written.
     if args.mesh.is_none() && (args.size[0] < 5 || args.size[1] < 5) {
@@ -281,6 +319,12 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
     let analysis = match source {
         Source::Analysis(a) => a,
         Source::Image(ex) => {
+            texsyn::gpu::synth::check_exemplar_fits(
+                &ctx,
+                ex.width,
+                ex.height,
+                AnalysisOptions::default().k,
+            )?;
             let options = AnalysisOptions {
                 tileable: args.tile.get(),
                 ..AnalysisOptions::default()
@@ -300,12 +344,6 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
     )?;
     let levels = analysis.levels.len();
     let synthesizer = Arc::new(GpuSynthesizer::new(&ctx, Arc::new(analysis))?);
-    let options = AdvectOptions {
-        levels: args.levels,
-        threshold: args.threshold,
-        passes: args.passes,
-        nearest: !args.bilinear,
-    };
 
     // 2D output, or a surface: the atlas plus what turns 3D flow into atlas velocities.
     let mut surface = None;
@@ -348,20 +386,32 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
             None => Ok(flow.sample(w, h, t as f32)?),
         }
     };
-    let mut frames: Vec<FloatImage> = Vec::new();
-    let mut displacements: Vec<Vec<[f32; 2]>> = vec![Vec::new()];
+    // Temporal figures frame by frame (only the previous frame is kept).
+    let every = if args.energy_every == 0 {
+        usize::MAX
+    } else {
+        args.energy_every
+    };
+    let mut figures = texsyn::quality::TemporalFigures::new(&exemplar_image, every);
     let mut costs = Vec::new();
     // Frames written to the output (every --every-th), and their size (renders with
     // --mesh).
     let mut written = (0u32, [w, h]);
-    let mut emit = |adv: &Advection, index: u32, frames: &mut Vec<FloatImage>| -> CliResult<()> {
+    let mut emit = |adv: &Advection,
+                    index: u32,
+                    displacement: &[[f32; 2]],
+                    figures: &mut texsyn::quality::TemporalFigures|
+     -> CliResult<()> {
         let rgba = adv.read_rgba8(&ctx)?;
-        frames.push(FloatImage::new(
-            w,
-            h,
-            1,
-            rgba.chunks(4).map(|p| p[0] as f32 / 255.0).collect(),
-        )?);
+        figures.push(
+            FloatImage::new(
+                w,
+                h,
+                1,
+                rgba.chunks(4).map(|p| p[0] as f32 / 255.0).collect(),
+            )?,
+            displacement,
+        )?;
         if !index.is_multiple_of(args.every) {
             return Ok(());
         }
@@ -401,15 +451,14 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
         }
         Ok(())
     };
-    emit(&adv, 0, &mut frames)?;
+    emit(&adv, 0, &[], &mut figures)?;
     for t in 1..=args.frames {
         let v = velocity_at(t)?;
         let start = Instant::now();
         adv.step(&ctx, &v, args.dt)?;
         ctx.wait_idle()?;
         costs.push(start.elapsed());
-        emit(&adv, t, &mut frames)?;
-        displacements.push(v.iter().map(|p| [p[0] * args.dt, p[1] * args.dt]).collect());
+        emit(&adv, t, &displacement(&v, args.dt), &mut figures)?;
         ui.progress(format!("frame {t}/{}", args.frames));
     }
     ui.end_progress();
@@ -422,17 +471,7 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
         s.commit()?;
     }
     let frame_time = median(&mut costs);
-    let every = if args.energy_every == 0 {
-        usize::MAX
-    } else {
-        args.energy_every
-    };
-    let report = texsyn::quality::temporal_report(
-        &exemplar_image,
-        &frames,
-        |t| displacements[t].clone(),
-        every,
-    )?;
+    let report = figures.finish()?;
     ui.info(format!(
         "output: {} ({} frames of {}x{})",
         args.output.display(),
@@ -446,11 +485,19 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
         100.0 * frame_time.as_secs_f64() / full_time.as_secs_f64(),
         fmt_duration(full_time)
     ));
-    ui.info(format!(
-        "frame-to-frame difference, warped by the flow: {:.4} (unwarped {:.4})",
-        report.mean_warped_diff(),
-        report.mean_unwarped_diff()
-    ));
+    let warped = report.mean_warped_diff();
+    ui.info(if warped.is_finite() {
+        format!(
+            "frame-to-frame difference, warped by the flow: {warped:.4} (unwarped {:.4})",
+            report.mean_unwarped_diff()
+        )
+    } else {
+        format!(
+            "frame-to-frame difference, warped by the flow: not measurable (the flow moves \
+             every pixel out of view between frames); unwarped {:.4}",
+            report.mean_unwarped_diff()
+        )
+    });
     let energies: Vec<String> = report
         .energy
         .iter()
@@ -463,6 +510,16 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
         report.sharpness.last().copied().unwrap_or(0.0)
     ));
     Ok(())
+}
+
+/// What a frame moves each pixel by: velocity x dt, clamped per component as the
+/// advection clamps it ([`texsyn::passes::advect::MAX_SPEED`] pixels a frame).
+pub fn displacement(velocity: &[[f32; 2]], dt: f32) -> Vec<[f32; 2]> {
+    let m = texsyn::passes::advect::MAX_SPEED;
+    velocity
+        .iter()
+        .map(|p| p.map(|c| (c * dt).clamp(-m, m)))
+        .collect()
 }
 
 fn median(v: &mut [Duration]) -> Duration {

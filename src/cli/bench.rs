@@ -133,6 +133,16 @@ pub fn run(ui: &Ui, args: BenchArgs) -> CliResult<()> {
     let t = Instant::now();
     let source = read_source(&args.exemplar, None, None)?;
     let read_time = t.elapsed();
+    let ctx = GpuContext::headless()?;
+    // An exemplar the device cannot hold is refused before the analysis.
+    if let Source::Image(ex) = &source {
+        texsyn::gpu::synth::check_exemplar_fits(
+            &ctx,
+            ex.width,
+            ex.height,
+            AnalysisOptions::default().k,
+        )?;
+    }
     let (analysis, analysis_line) = match source {
         Source::Analysis(a) => (
             a,
@@ -151,9 +161,14 @@ pub fn run(ui: &Ui, args: BenchArgs) -> CliResult<()> {
             let mut times = Vec::new();
             let mut result = None;
             for i in 0..runs {
-                ui.progress(format!("analysis run {}/{runs}", i + 1));
                 let t = Instant::now();
-                let a = analysis::analyze(&ex, &opts, |_| {})?;
+                let a = if runs == 1 {
+                    // One long run: show its levels.
+                    analysis::analyze(&ex, &opts, ui.analysis_progress())?
+                } else {
+                    ui.progress(format!("analysis run {}/{runs}", i + 1));
+                    analysis::analyze(&ex, &opts, |_| {})?
+                };
                 times.push(t.elapsed());
                 result = Some(a);
             }
@@ -177,7 +192,6 @@ pub fn run(ui: &Ui, args: BenchArgs) -> CliResult<()> {
             (result.expect("at least one run"), line)
         }
     };
-    let ctx = GpuContext::headless()?;
 
     let t = Instant::now();
     let summary = format!(

@@ -310,27 +310,29 @@ fn temporal(
             }
         }
     }
-    let frames: Vec<FloatImage> = paths
-        .iter()
-        .map(|p| load_image(p))
-        .collect::<CliResult<_>>()?;
-    let (w, h) = (frames[0].width, frames[0].height);
-    if frames.iter().any(|f| (f.width, f.height) != (w, h)) {
-        return Err(fail("the frames do not all have the same size"));
-    }
-    let dt = args.dt;
+    // One frame at a time: memory stays flat for long sequences.
+    let first = load_image(&paths[0])?;
+    let (w, h) = (first.width, first.height);
     // A field of another size than the frames is an error, not a silently ignored flow.
     flow.sample(w, h, 0.0)?;
-    let report = quality::temporal_report(
-        &FloatImage::from_exemplar(exemplar),
-        &frames,
-        |t| {
-            flow.sample(w, h, t as f32)
-                .map(|v| v.iter().map(|p| [p[0] * dt, p[1] * dt]).collect())
-                .unwrap_or_default()
-        },
-        args.energy_every,
-    )?;
+    let mut figures =
+        quality::TemporalFigures::new(&FloatImage::from_exemplar(exemplar), args.energy_every);
+    figures.push(first, &[])?;
+    for (t, path) in paths.iter().enumerate().skip(1) {
+        let frame = load_image(path)?;
+        if (frame.width, frame.height) != (w, h) {
+            return Err(fail(format!(
+                "{} is {}x{}, the first frame {w}x{h}: the frames must all have one size",
+                path.display(),
+                frame.width,
+                frame.height
+            )));
+        }
+        let v = flow.sample(w, h, t as f32)?;
+        figures.push(frame, &super::advect::displacement(&v, args.dt))?;
+    }
+    let frames = paths.len();
+    let report = figures.finish()?;
     let list = |v: &[f64]| {
         v.iter()
             .map(|x| json_number(*x))
@@ -345,7 +347,7 @@ fn temporal(
         .join(",");
     ui.out(format!(
         "{{\"frames\":{},\"mean_warped_diff\":{},\"mean_unwarped_diff\":{},\"warped_diff\":[{}],\"energy\":[{}],\"sharpness\":[{}]}}",
-        frames.len(),
+        frames,
         json_number(report.mean_warped_diff()),
         json_number(report.mean_unwarped_diff()),
         list(&report.warped_diff),

@@ -47,6 +47,14 @@ pub struct AdvectOptions {
     pub nearest: bool,
 }
 
+impl AdvectOptions {
+    /// Checks the options (1-16 levels, a positive finite threshold, at most 16 passes);
+    /// [`Advection::new`] and [`Advection::set_options`] call it.
+    pub fn check(&self) -> Result<()> {
+        Advection::check_options(self)
+    }
+}
+
 impl Default for AdvectOptions {
     fn default() -> Self {
         Self {

@@ -1234,7 +1234,12 @@ pub fn check_exemplar_fits(ctx: &GpuContext, width: u32, height: u32, k: u32) ->
                 biggest >> 20,
                 max >> 20
             ),
-            "use a smaller exemplar (downsample it) or a smaller k",
+            if offset_bytes > table_bytes {
+                "use a smaller k or a smaller exemplar"
+            } else {
+                "use a smaller exemplar: downsample it, or keep its detail with \
+                 `synth --magnify F` (analysis on a 1/F copy, colours from the full image)"
+            },
         ));
     }
     Ok(())
