@@ -436,6 +436,16 @@ pub fn load_direction_scale_image(path: &Path) -> Result<FieldMap> {
 pub fn load_jacobian_exr(path: &Path) -> Result<FieldMap> {
     let img = crate::image_io::open_image(path)?;
     let (w, h) = (img.width(), img.height());
+    if !matches!(
+        img,
+        image::DynamicImage::ImageRgba32F(_) | image::DynamicImage::ImageRgb32F(_)
+    ) {
+        return Err(Error::InvalidParameter(format!(
+            "{}: not a float (EXR) image; exr: takes a float RGBA EXR holding J (for an \
+             8-bit direction-and-scale image use image:FILE)",
+            path.display()
+        )));
+    }
     if img.color().channel_count() < 4 {
         return Err(Error::InvalidParameter(format!(
             "{}: a Jacobian EXR needs 4 channels (R, G, B, A = J00, J01, J10, J11), it has {}",

@@ -139,6 +139,16 @@ impl Flow {
             Flow::Gusts { speed, turn } => finite(&[*speed, *turn]),
             Flow::Map { data, .. } => data.iter().all(|v| finite(v)),
         };
+        // Centres are fractions of the output size (unlike `--field vortex`, in pixels):
+        // one far outside is almost surely pixels given by mistake.
+        if let Flow::Vortex { cx, cy, .. } | Flow::Source { cx, cy, .. } = self {
+            if ok && (cx.abs() > 4.0 || cy.abs() > 4.0) {
+                return Err(Error::InvalidParameter(format!(
+                    "flow centre ({cx}, {cy}): flow centres are fractions of the output size \
+                     (0.5,0.5 is the middle; divide pixels by the width and height)"
+                )));
+            }
+        }
         if ok {
             Ok(())
         } else {
@@ -189,7 +199,7 @@ impl std::str::FromStr for Flow {
                 return if defaults.len() == n {
                     Ok(defaults.to_vec())
                 } else {
-                    Err(format!("'{s}': {kind} needs {n} numbers"))
+                    Err(format!("'{s}': {kind} needs {n} number(s)"))
                 };
             }
             let v: std::result::Result<Vec<f32>, _> =

@@ -45,6 +45,17 @@ pub fn load_exemplar(path: &Path) -> Result<Exemplar> {
     exemplar_from(&img, Some(path))
 }
 
+/// A material map (`--also`): its size, its channel count as stored (1 grey, 2 grey +
+/// alpha, 3 RGB, 4 RGBA) and its pixels as RGBA8 (grey replicated into RGB; alpha kept,
+/// 255 where there is none). Unlike [`load_exemplar`], alpha is data here (opacity,
+/// packed roughness...), so it is resynthesized and written back.
+pub fn load_material_map(path: &Path) -> Result<(u32, u32, u32, Vec<[u8; 4]>)> {
+    let img = decode_image(path)?;
+    let channels = img.color().channel_count() as u32;
+    let pixels = img.to_rgba8().pixels().map(|p| p.0).collect();
+    Ok((img.width(), img.height(), channels.clamp(1, 4), pixels))
+}
+
 /// Builds an [`Exemplar`] from an already decoded image (see [`load_exemplar`] for the
 /// conversion rules). Fails with [`Error::ExemplarTooSmall`] for images below the minimum
 /// size.
@@ -519,6 +530,10 @@ pub fn save_image_atomic(
             let grey: Vec<u8> = rgba8.chunks_exact(4).map(|p| p[0]).collect();
             DynamicImage::ImageLuma8(image::GrayImage::from_raw(width, height, grey).unwrap())
         }
+        2 => {
+            let la: Vec<u8> = rgba8.chunks_exact(4).flat_map(|p| [p[0], p[3]]).collect();
+            DynamicImage::ImageLumaA8(image::GrayAlphaImage::from_raw(width, height, la).unwrap())
+        }
         3 => {
             let rgb: Vec<u8> = rgba8
                 .chunks_exact(4)
@@ -531,7 +546,7 @@ pub fn save_image_atomic(
         ),
         c => {
             return Err(Error::InvalidParameter(format!(
-                "cannot write {}: {c} channels requested; use 1 (grey), 3 (RGB) or 4 (RGBA)",
+                "cannot write {}: {c} channels requested; use 1 (grey), 2 (grey + alpha), 3 (RGB) or 4 (RGBA)",
                 path.display()
             )))
         }

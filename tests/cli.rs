@@ -886,11 +886,7 @@ fn controls_end_to_end_and_their_bad_inputs() {
         let args: Vec<&str> = args.iter().map(|s| s.as_str()).collect();
         fails(&dir, &args, code, needle);
     };
-    fails_with(
-        &["--field", "image:field10.png"],
-        1,
-        "must have the output's size",
-    );
+    fails_with(&["--field", "image:field10.png"], 1, "must have that size");
     fails_with(&["--field", "exr:nan.exr"], 1, "NaN");
     fails_with(&["--field", "rotate:abc"], 2, "not a number");
     fails_with(&["--field", "scale:0"], 1, "zero scale");
@@ -1080,6 +1076,33 @@ fn review_findings_fail_cleanly() {
         1,
         "16x16",
     );
+
+    // --also keeps a map's alpha channel (here alpha = 100 + x % 7, red = y).
+    image::RgbaImage::from_fn(128, 128, |x, y| {
+        image::Rgba([y as u8, 0, 0, 100 + (x % 7) as u8])
+    })
+    .save(dir.path("rgba_map.png"))
+    .unwrap();
+    ok(
+        &dir,
+        &[
+            "synth",
+            GRAVEL,
+            "-o",
+            "a.png",
+            "--size",
+            "32",
+            "--also",
+            "rgba_map.png=a_map.png",
+            "-q",
+        ],
+    );
+    let map = image::open(dir.path("a_map.png")).unwrap();
+    assert_eq!(map.color(), image::ColorType::Rgba8);
+    assert!(map
+        .to_rgba8()
+        .pixels()
+        .all(|p| (100..107).contains(&p.0[3])));
 
     // An HDR exemplar is refused with what to do; NaN samples name the pixel.
     let hdr = image::Rgb32FImage::from_fn(32, 32, |x, y| image::Rgb([x as f32, y as f32, 0.5]));

@@ -444,9 +444,14 @@ fn save_image_rejects_bad_parameters() {
         other => panic!("expected InvalidParameter, got {other:?}"),
     }
     assert!(matches!(
-        save_image_atomic(&dir.join("x.png"), 4, 4, 2, &rgba),
+        save_image_atomic(&dir.join("x.png"), 4, 4, 5, &rgba),
         Err(Error::InvalidParameter(_))
     ));
+    // 2 channels: grey + alpha (material maps keep their alpha).
+    save_image_atomic(&dir.join("la.png"), 4, 4, 2, &rgba).unwrap();
+    let la = image::open(dir.join("la.png")).unwrap();
+    assert_eq!(la.color(), image::ColorType::La8);
+    let _ = std::fs::remove_file(dir.join("la.png"));
     assert!(matches!(
         save_image_atomic(&dir.join("x.png"), 4, 5, 3, &rgba),
         Err(Error::InvalidParameter(_))

@@ -117,6 +117,29 @@ impl FeatureMask {
         Ok(m)
     }
 
+    /// The mask of an exemplar downsampled `factor` times (cropped to a multiple of it,
+    /// as [`crate::image_io::downsample_exemplar`] crops): a pixel is a feature when at
+    /// least half of its block is. For `--magnify`, whose mask is given at full size.
+    pub fn downsample(&self, factor: u32) -> Result<Self> {
+        let f = factor.max(1) as usize;
+        let (w, h) = (self.width as usize / f, self.height as usize / f);
+        let mut inside = Vec::with_capacity(w * h);
+        for y in 0..h {
+            for x in 0..w {
+                let count = (0..f)
+                    .flat_map(|dy| (0..f).map(move |dx| (dx, dy)))
+                    .filter(|&(dx, dy)| {
+                        self.inside[(y * f + dy) * self.width as usize + x * f + dx]
+                    })
+                    .count();
+                inside.push(2 * count >= f * f);
+            }
+        }
+        let mut m = Self::new(w as u32, h as u32, inside)?;
+        m.source = self.source.clone();
+        Ok(m)
+    }
+
     /// Fraction of the pixels that are feature.
     pub fn coverage(&self) -> f64 {
         self.inside.iter().filter(|&&b| b).count() as f64 / self.inside.len().max(1) as f64

@@ -152,13 +152,21 @@ pub fn run(ui: &Ui, args: EvalArgs) -> CliResult<()> {
         None => None,
         Some(path) => {
             let (w, h, c) = texsyn::image_io::load_coords_exr_f32(path)?;
+            let magnified = (2..=8).find(|f| (w * f, h * f) == (output.width, output.height));
             if (w, h) != (output.width, output.height) {
                 return Err(fail(format!(
-                    "{} is {w}x{h} but {} is {}x{}: give the coordinate map written together with the image",
+                    "{} is {w}x{h} but {} is {}x{}: give the coordinate map written together with the image{}",
                     path.display(),
                     args.image.display(),
                     output.width,
-                    output.height
+                    output.height,
+                    match magnified {
+                        Some(f) => format!(
+                            " (if the image is a --magnify {f} output, the map has one coordinate \
+                             per synthesized pixel: evaluate the image without --coords)"
+                        ),
+                        None => String::new(),
+                    }
                 )));
             }
             // Synthesized coordinates are exemplar positions: anything far outside is not

@@ -67,7 +67,7 @@ pub fn parse_field(s: &str) -> Result<FieldSpec, String> {
             Ok(())
         } else {
             Err(format!(
-                "{name}: expected {} numbers, got {}",
+                "{name}: expected {} number(s), got {}",
                 allowed
                     .iter()
                     .map(|n| n.to_string())
@@ -119,7 +119,8 @@ pub fn parse_field(s: &str) -> Result<FieldSpec, String> {
         }
         "image" if !rest.is_empty() => Ok(FieldSpec::Image(rest.into())),
         "exr" if !rest.is_empty() => Ok(FieldSpec::Exr(rest.into())),
-        "image" | "exr" => Err(format!("{name}: give a file, e.g. {name}:field.png")),
+        "image" => Err("image: give a file, e.g. image:field.png".into()),
+        "exr" => Err("exr: give a file, e.g. exr:jacobian.exr".into()),
         _ => Err(format!(
             "unknown field '{name}' (rotate, scale, constant, vortex, swirl, radial, perspective, image, exr)"
         )),
@@ -221,8 +222,8 @@ impl FieldSpec {
                 };
                 if map.width != width || map.height != height {
                     return Err(fail(format!(
-                        "field {}: {}x{} pixels, but the output is {width}x{height}; the field \
-                         must have the output's size",
+                        "field {}: {}x{} pixels, but the output is {width}x{height} (as \
+                         synthesized, before any --magnify); the field must have that size",
                         p.display(),
                         map.width,
                         map.height

@@ -48,7 +48,7 @@ pub struct SurfaceArgs {
 
     /// World units per exemplar texel: a number, or linear:AX,AY,AZ:S_MIN:S_MAX to vary
     /// it along an axis. Default: one exemplar texel per atlas texel on average
-    #[arg(long, value_name = "S|SPEC", value_parser = parse_scale)]
+    #[arg(long, value_name = "S|SPEC", value_parser = parse_scale, allow_hyphen_values = true)]
     pub texel_size: Option<ScaleSource>,
 
     /// Where the exemplar's x axis goes on the surface (see --help)

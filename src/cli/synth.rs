@@ -85,7 +85,8 @@ pub struct SynthArgs {
     /// render the output F times larger (2, 4 or 8) with the full-resolution exemplar's
     /// colours. Needs an exemplar image (not an analysis file). With --coords-out the
     /// coordinates (per pixel before magnification) are written too; --also maps
-    /// (full-resolution, the exemplar's size) are magnified the same way
+    /// (full-resolution, the exemplar's size) are magnified the same way; a
+    /// --feature-mask may be given at the exemplar's size (it is downsampled with it)
     #[arg(long, value_name = "F", value_parser = parse_magnify)]
     pub magnify: Option<u32>,
 
@@ -368,6 +369,13 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
                 ..AnalysisOptions::default()
             };
             args.appearance.apply(&mut options)?;
+            // With --magnify the mask may be given at the full exemplar's size, like
+            // the --also maps: it is downsampled as the exemplar was.
+            if let (Some(f), Some(mask)) = (args.magnify, &options.feature_mask) {
+                if (mask.width / f, mask.height / f) == (ex.width, ex.height) && f > 1 {
+                    options.feature_mask = Some(mask.downsample(f)?);
+                }
+            }
             let a = texsyn::analysis::analyze(&ex, &options, ui.analysis_progress())?;
             (a, false, Some(t.elapsed()))
         }
@@ -412,18 +420,16 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
     let (ew, eh) =
         full_size.unwrap_or((synthesizer.analysis().width, synthesizer.analysis().height));
     for a in &args.also {
-        let ex = texsyn::image_io::load_exemplar(&a.input)?;
-        if (ex.width, ex.height) != (ew, eh) {
+        let (mw, mh, map_channels, map_pixels) = texsyn::image_io::load_material_map(&a.input)?;
+        if (mw, mh) != (ew, eh) {
             return Err(fail(format!(
-                "--also {}: {}x{} pixels, but the exemplar is {ew}x{eh}; extra maps must be aligned with it",
+                "--also {}: {mw}x{mh} pixels, but the exemplar is {ew}x{eh}; extra maps must be aligned with it",
                 a.input.display(),
-                ex.width,
-                ex.height,
             )));
         }
         let pixels = match &hi_res {
-            Some((_, hw, hh, _)) => crop_rows(&ex.colors, ew, *hw, *hh),
-            None => ex.colors,
+            Some((_, hw, hh, _)) => crop_rows(&map_pixels, ew, *hw, *hh),
+            None => map_pixels,
         };
         extra.push((
             texsyn::gpu::synth::ExtraMap {
@@ -431,7 +437,7 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
                 normal: a.normal,
                 green_down: a.green_down,
             },
-            ex.channels,
+            map_channels,
         ));
     }
 

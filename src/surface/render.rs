@@ -302,7 +302,7 @@ fn too_large(what: &'static str, width: u32, height: u32, max: u32) -> Error {
         width,
         height,
         limit: format!("max_texture_dimension_2d = {max}"),
-        hint: "render a smaller atlas or smaller views",
+        hint: "use a smaller --atlas-size, or fewer --views or a smaller --view-size",
     }
 }
 
