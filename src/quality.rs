@@ -1825,13 +1825,13 @@ impl TemporalFigures {
             .sharpness
             .push(high_frequency_energy(&frame) / self.exemplar_hf);
         if let Some(prev) = &self.prev {
-            let zero = vec![[0.0f32; 2]; (frame.width * frame.height) as usize];
             self.report
                 .warped_diff
                 .push(warped_difference(prev, &frame, displacement, 4));
+            // An empty displacement reads as zero everywhere.
             self.report
                 .unwarped_diff
-                .push(warped_difference(prev, &frame, &zero, 4));
+                .push(warped_difference(prev, &frame, &[], 4));
         }
         let energy = t % self.every == 0;
         if energy {

@@ -352,9 +352,11 @@ pub fn par_ranges<T: Send>(
 /// better wrapped (e.g. pink marble 0.65 wrapped, 0.81-0.85 not).
 pub fn detect_tileable(ex: &Exemplar) -> bool {
     // An inconsistent hand-built exemplar is not tileable (analyze reports why).
-    if ex.check().is_err() {
-        return false;
-    }
+    ex.check().is_ok() && detect_tileable_checked(ex)
+}
+
+/// [`detect_tileable`] of an exemplar already checked (by [`analyze`]).
+fn detect_tileable_checked(ex: &Exemplar) -> bool {
     let (w, h, c) = (ex.width as usize, ex.height as usize, ex.channels as usize);
     let px = |x: usize, y: usize| &ex.values[(y * w + x) * c..(y * w + x + 1) * c];
     let d2 = |a: &[f32], b: &[f32]| {
@@ -433,7 +435,7 @@ pub fn analyze(
         mask.check_size(ex.width, ex.height)?;
     }
     let threads = opts.threads;
-    let tileable = opts.tileable.unwrap_or_else(|| detect_tileable(ex));
+    let tileable = opts.tileable.unwrap_or_else(|| detect_tileable_checked(ex));
     let top = level_count(ex.width, ex.height);
     // The feature channel, if any, is appended to the colours so that the stack blurs it
     // and the appearance vectors gather it like a colour.

@@ -316,15 +316,10 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
             "advection keeps each whole frame in one synthesis: give a smaller --size",
         )?;
     }
+    source.check_fits(&ctx, AnalysisOptions::default().k)?;
     let analysis = match source {
         Source::Analysis(a) => a,
         Source::Image(ex) => {
-            texsyn::gpu::synth::check_exemplar_fits(
-                &ctx,
-                ex.width,
-                ex.height,
-                AnalysisOptions::default().k,
-            )?;
             let options = AnalysisOptions {
                 tileable: args.tile.get(),
                 ..AnalysisOptions::default()

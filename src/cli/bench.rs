@@ -135,14 +135,7 @@ pub fn run(ui: &Ui, args: BenchArgs) -> CliResult<()> {
     let read_time = t.elapsed();
     let ctx = GpuContext::headless()?;
     // An exemplar the device cannot hold is refused before the analysis.
-    if let Source::Image(ex) = &source {
-        texsyn::gpu::synth::check_exemplar_fits(
-            &ctx,
-            ex.width,
-            ex.height,
-            AnalysisOptions::default().k,
-        )?;
-    }
+    source.check_fits(&ctx, AnalysisOptions::default().k)?;
     let (analysis, analysis_line) = match source {
         Source::Analysis(a) => (
             a,

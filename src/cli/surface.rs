@@ -284,15 +284,10 @@ pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
     ui.info(format!("adapter: {}", ctx.describe()));
     check_atlas_fits(&ctx, args.atlas_size, args.magnify.unwrap_or(1))?;
     let t = Instant::now();
+    source.check_fits(&ctx, AnalysisOptions::default().k)?;
     let analysis = match source {
         Source::Analysis(a) => a,
         Source::Image(ex) => {
-            texsyn::gpu::synth::check_exemplar_fits(
-                &ctx,
-                ex.width,
-                ex.height,
-                AnalysisOptions::default().k,
-            )?;
             let options = AnalysisOptions {
                 tileable: args.tile.get(),
                 ..AnalysisOptions::default()

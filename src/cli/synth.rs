@@ -192,6 +192,17 @@ pub enum Source {
     Image(Exemplar),
 }
 
+impl Source {
+    /// Refuses, before any analysis, an exemplar image whose tables (with similarity
+    /// sets of size `k`) the device cannot hold; an analysis file is checked on upload.
+    pub fn check_fits(&self, ctx: &GpuContext, k: u32) -> CliResult<()> {
+        if let Source::Image(ex) = self {
+            texsyn::gpu::synth::check_exemplar_fits(ctx, ex.width, ex.height, k)?;
+        }
+        Ok(())
+    }
+}
+
 /// Reads EXEMPLAR (an analysis file or an image, told apart by content) without
 /// analysing it yet; `--k` / `--tileable` must agree with an analysis file.
 pub fn read_source(path: &Path, k: Option<u32>, tileable: Option<bool>) -> CliResult<Source> {
@@ -353,15 +364,10 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
     ui.info(format!("adapter: {}", ctx.describe()));
     check_output_size(&ctx, width, height).map_err(cli_hint)?;
 
+    source.check_fits(&ctx, args.k.unwrap_or(AnalysisOptions::default().k))?;
     let (analysis, from_file, analysis_time) = match source {
         Source::Analysis(a) => (a, true, None),
         Source::Image(ex) => {
-            texsyn::gpu::synth::check_exemplar_fits(
-                &ctx,
-                ex.width,
-                ex.height,
-                args.k.unwrap_or(AnalysisOptions::default().k),
-            )?;
             let t = Instant::now();
             let mut options = AnalysisOptions {
                 k: args.k.unwrap_or(AnalysisOptions::default().k),
