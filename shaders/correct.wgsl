@@ -41,7 +41,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     prediction_sum(n, vec2<i32>(1, -1), h, &s1l, &s1h);
     prediction_sum(n, vec2<i32>(-1, 1), h, &s2l, &s2h);
     prediction_sum(n, vec2<i32>(-1, -1), h, &s3l, &s3h);
-    let full = (params.full_distance | u32(opaque)) != 0u;
+    let full = FULL_DISTANCE;
     var ns_lo = vec4<i32>(0);
     var ns_hi = vec4<i32>(0);
     if (!full) {
@@ -66,13 +66,13 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             best_d = projected_distance(ns_lo, ns_hi, best);
         }
     }
-    let km1 = u32(max(params.k - 1, 0));
+    let km1 = u32(K - 1);
     for (var dy = -1; dy <= 1; dy++) {
         for (var dx = -1; dx <= 1; dx++) {
             let dd = vec2<i32>(dx, dy);
             let s = neighbour(n, dd);
             let obase = params.off_base + ex_index(s) * km1;
-            for (var i = 0; i < (params.k | opaque); i++) {
+            for (var i = 0; i < K; i++) {
                 var o = vec2<i32>(0);
                 if (i > 0) {
                     let w = offsets[obase + u32(i - 1)];

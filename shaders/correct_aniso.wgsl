@@ -127,7 +127,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let s1l = p1.lo; let s1h = p1.hi;
     let s2l = p2.lo; let s2h = p2.hi;
     let s3l = p3.lo; let s3h = p3.hi;
-    let full = (params.full_distance | u32(opaque)) != 0u;
+    let full = FULL_DISTANCE;
     var ns_lo = vec4<i32>(0);
     var ns_hi = vec4<i32>(0);
     if (!full) {
@@ -150,14 +150,14 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             best_d = projected_distance_at(ns_lo, ns_hi, best);
         }
     }
-    let km1 = u32(max(params.k - 1, 0));
+    let km1 = u32(K - 1);
     for (var dy = -1; dy <= 1; dy++) {
         for (var dx = -1; dx <= 1; dx++) {
             let dd = vec2<i32>(dx, dy);
             let s = neighbour(n, dd);
             let hjd = scaled_jd(params.spacing, j, dd);
             let obase = params.off_base + ex_index(nearest_texel(s)) * km1;
-            for (var i = 0; i < (params.k | opaque); i++) {
+            for (var i = 0; i < K; i++) {
                 var o = vec2<i32>(0);
                 if (i > 0) {
                     let w = offsets[obase + u32(i - 1)];
@@ -178,7 +178,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
                         + full_term(s2l, s2h, n + vec2<i32>(-h.x, h.y)) + full_term(s3l, s3h, n - h);
                 } else {
                     // Similarity-set candidates at their nearest texel (see the mirror).
-                    if (i > 0 && (params.kset_interp | u32(opaque)) == 0u) {
+                    if (i > 0 && !KSET_INTERP) {
                         dist = projected_distance(ns_lo, ns_hi, nearest_texel(c));
                     } else {
                         dist = projected_distance_at(ns_lo, ns_hi, c);

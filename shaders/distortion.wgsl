@@ -15,7 +15,7 @@
 // exemplars and clamped so its square cannot overflow.
 fn step_err(d: vec2<i32>) -> u32 {
     var e = d;
-    if ((params.tileable | opaque) != 0) {
+    if (TILEABLE) {
         let n = params.ex_size << vec2<u32>(params.coord_frac);
         e -= select(vec2<i32>(0), n, e > n / 2);
         e += select(vec2<i32>(0), n, e < -n / 2);

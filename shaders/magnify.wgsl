@@ -17,14 +17,14 @@ fn hi_u(c: vec2<i32>) -> vec4<i32> {
 fn hi_bilinear(u_in: vec2<i32>) -> vec4<i32> {
     let n = params.hi_size << vec2<u32>(COORD_FRAC);
     var u: vec2<i32>;
-    if ((params.tileable | opaque) != 0) {
+    if (TILEABLE) {
         u = vec2<i32>(wrap(u_in.x, n.x), wrap(u_in.y, n.y));
     } else {
         u = clamp(u_in, vec2<i32>(0), n - vec2<i32>(1 << COORD_FRAC));
     }
     let i0 = u >> vec2<u32>(COORD_FRAC);
     var i1: vec2<i32>;
-    if ((params.tileable | opaque) != 0) {
+    if (TILEABLE) {
         i1 = select(i0 + vec2<i32>(1), vec2<i32>(0), i0 + vec2<i32>(1) == params.hi_size);
     } else {
         i1 = min(i0 + vec2<i32>(1), params.hi_size - vec2<i32>(1));

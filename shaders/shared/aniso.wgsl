@@ -24,7 +24,7 @@ fn phi_inv(j: vec4<i32>, d: vec2<i32>) -> vec2<i32> {
 // A difference of two fitted coordinates, the shortest way around a tileable exemplar.
 fn coord_delta(d: vec2<i32>) -> vec2<i32> {
     var e = d;
-    if ((params.tileable | opaque) != 0) {
+    if (TILEABLE) {
         let n = params.ex_size << vec2<u32>(COORD_FRAC);
         e -= select(vec2<i32>(0), n, e > (n >> vec2<u32>(1u)));
         e += select(vec2<i32>(0), n, e < -(n >> vec2<u32>(1u)));
@@ -40,14 +40,14 @@ fn same_patch(a: vec2<i32>, b: vec2<i32>) -> bool {
 
 fn read_coord_fx(c: vec2<i32>) -> vec2<i32> {
     let n = params.ex_size << vec2<u32>(COORD_FRAC);
-    if ((params.tileable | opaque) != 0) {
+    if (TILEABLE) {
         return vec2<i32>(wrap(c.x, n.x), wrap(c.y, n.y));
     }
     return clamp(c, vec2<i32>(0), n - vec2<i32>(1 << COORD_FRAC));
 }
 
 fn is_valid_fx(c: vec2<i32>) -> bool {
-    if ((params.tileable | opaque) != 0) {
+    if (TILEABLE) {
         return true;
     }
     let m = params.margin | opaque;
@@ -58,7 +58,7 @@ fn is_valid_fx(c: vec2<i32>) -> bool {
 
 fn nearest_texel(c: vec2<i32>) -> vec2<i32> {
     let r = (c + vec2<i32>(1 << (COORD_FRAC - 1u))) >> vec2<u32>(COORD_FRAC);
-    if ((params.tileable | opaque) != 0) {
+    if (TILEABLE) {
         return select(r, r - params.ex_size, r >= params.ex_size);
     }
     return min(r, params.ex_size - vec2<i32>(1));
@@ -76,7 +76,7 @@ struct Taps {
 fn bilinear_taps(u: vec2<i32>) -> Taps {
     let a = u >> vec2<u32>(COORD_FRAC);
     var b: vec2<i32>;
-    if ((params.tileable | opaque) != 0) {
+    if (TILEABLE) {
         b = select(a + vec2<i32>(1), vec2<i32>(0), a + vec2<i32>(1) == params.ex_size);
     } else {
         b = min(a + vec2<i32>(1), params.ex_size - vec2<i32>(1));

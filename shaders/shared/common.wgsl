@@ -68,6 +68,21 @@ struct Params {
 // the shader for every new combination of values, i.e. for nearly every dispatch
 // (measured ~10 ms per dispatch of the anisometric correction).
 var<private> opaque: i32;
+
+// Switches that stay fixed for a whole dispatch, as pipeline-overridable constants: one
+// pipeline per combination, built on first use (crate::gpu::synth::Variant). A branch on
+// them is compiled out. As uniforms they had to be mixed with `opaque`, which made the
+// branch divergent for the compiler, and CPU drivers then ran both sides of it for every
+// pixel (measured: the unused distance and the wrap-around arithmetic cost the
+// correction ~25%). Each equals the PassParams field of the same name, which the CPU
+// mirror reads.
+override TILEABLE: bool = false;
+override FULL_DISTANCE: bool = false;
+override KSET_INTERP: bool = false;
+override MASKED: bool = false;
+override PERIODIC: bool = false;
+// params.k: the similarity-set size (1..=8), so that the candidate loop unrolls.
+override K: i32 = 2;
 // Synthesized exemplar coordinates of every level's region, concatenated.
 @group(0) @binding(1) var<storage, read_write> coords: array<vec2<i32>>;
 // Quantized transformed exemplar Et_l: 8 x i16 per pixel, all levels.
@@ -98,7 +113,7 @@ var<private> opaque: i32;
 // Whether region texel t (index within the level) lies inside a chart; always true
 // outside atlas synthesis.
 fn in_chart(t: u32) -> bool {
-    if ((params.masked | u32(opaque)) == 0u) {
+    if (!MASKED) {
         return true;
     }
     return ((surface[params.mask_base + (t >> 5u)] >> (t & 31u)) & 1u) != 0u;
@@ -140,7 +155,7 @@ fn wrap(c: i32, n: i32) -> i32 {
 // In units of 2^-coord_frac exemplar pixels.
 fn fit_coord(c: vec2<i32>) -> vec2<i32> {
     let f = vec2<u32>(params.coord_frac);
-    if ((params.tileable | opaque) != 0) {
+    if (TILEABLE) {
         let n = params.ex_size << f;
         return vec2<i32>(wrap(c.x, n.x), wrap(c.y, n.y));
     }
@@ -161,21 +176,21 @@ fn wrap_near(c: vec2<i32>) -> vec2<i32> {
 }
 
 fn fit_near(c: vec2<i32>) -> vec2<i32> {
-    if ((params.tileable | opaque) != 0) {
+    if (TILEABLE) {
         return wrap_near(c);
     }
     return fit_coord(c);
 }
 
 fn read_coord(c: vec2<i32>) -> vec2<i32> {
-    if ((params.tileable | opaque) != 0) {
+    if (TILEABLE) {
         return wrap_near(c);
     }
     return clamp(c, vec2<i32>(0), params.ex_size - vec2<i32>(1));
 }
 
 fn is_valid(c: vec2<i32>) -> bool {
-    if ((params.tileable | opaque) != 0) {
+    if (TILEABLE) {
         return true;
     }
     let m = params.margin | opaque;
@@ -188,7 +203,7 @@ fn is_valid(c: vec2<i32>) -> bool {
 // (neighbours are at most one pixel outside).
 fn region_index(q: vec2<i32>) -> u32 {
     var c: vec2<i32>;
-    if ((params.periodic | u32(opaque)) != 0u) {
+    if (PERIODIC) {
         let n = params.size;
         c = q + select(vec2<i32>(0), n, q < vec2<i32>(0));
         c = c - select(vec2<i32>(0), n, c >= n);
@@ -263,7 +278,7 @@ fn unpack8(v: vec4<u32>, out_lo: ptr<function, vec4<i32>>, out_hi: ptr<function,
 // pair, so no two updated pixels are neighbours. Returns the region coordinate this
 // invocation updates along one axis, or -1.
 fn subpass_axis(cls: i32, origin: i32, size: i32, g: i32) -> i32 {
-    let odd_wrap = (params.periodic | u32(opaque)) != 0u && (size & 1) == 1 && size >= 3;
+    let odd_wrap = PERIODIC && (size & 1) == 1 && size >= 3;
     if (cls == 2) {
         return select(-1, size - 1, g == 0);
     }

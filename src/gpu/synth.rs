@@ -185,38 +185,107 @@ type JacobianKey = (
     Option<usize>,
 );
 
-/// A compute pipeline built on first use: a synthesis needs 4 of the 13 passes, and
-/// building a pipeline costs ~10 ms on lavapipe (measured: 130 ms for all 13 at start-up).
+/// The switches compiled into a pass pipeline as WGSL overrides (`shaders/shared/
+/// common.wgsl`): a pipeline per combination in use, so that CPU drivers do not run the
+/// branches a dispatch never takes. Bits 0-4: the flags of [`Self::FLAGS`]; bits 5-7:
+/// the similarity-set size k - 1.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Variant(u8);
+
+impl Variant {
+    const FLAGS: [&'static str; 5] = [
+        "TILEABLE",
+        "FULL_DISTANCE",
+        "KSET_INTERP",
+        "MASKED",
+        "PERIODIC",
+    ];
+    const COUNT: usize = 256;
+
+    /// The switches of a dispatch, from the parameters the CPU mirror reads.
+    pub(crate) fn of(p: &PassParams) -> Self {
+        let flags = [
+            p.tileable != 0,
+            p.full_distance != 0,
+            p.kset_interp != 0,
+            p.masked != 0,
+            p.periodic != 0,
+        ];
+        let k = (p.k.clamp(1, crate::analysis::MAX_K as i32) - 1) as u8;
+        Self(
+            flags
+                .iter()
+                .enumerate()
+                .fold(k << 5, |v, (i, &b)| v | (u8::from(b) << i)),
+        )
+    }
+
+    /// The switches only the correction passes read are reset for the others, so they
+    /// share one pipeline across levels.
+    fn for_kind(self, kind: PassKind) -> Self {
+        match kind {
+            PassKind::Correct | PassKind::CorrectAniso => self,
+            _ => Self(self.0 & 0b11001),
+        }
+    }
+
+    /// The override values of this variant.
+    fn constants(self) -> Vec<(&'static str, f64)> {
+        let mut c: Vec<(&str, f64)> = Self::FLAGS
+            .iter()
+            .enumerate()
+            .map(|(i, &name)| (name, f64::from((self.0 >> i) & 1)))
+            .collect();
+        c.push(("K", f64::from((self.0 >> 5) + 1)));
+        c
+    }
+}
+
+/// A compute pipeline built on first use, per [`Variant`]: a synthesis needs 5 of the
+/// 13 passes' pipelines, and building one costs ~10 ms on lavapipe (measured: 130 ms for
+/// all 13 at start-up).
 struct LazyPipeline {
     shader: &'static ShaderSource,
-    cell: std::sync::OnceLock<wgpu::ComputePipeline>,
+    module: std::sync::OnceLock<wgpu::ShaderModule>,
+    cells: [std::sync::OnceLock<wgpu::ComputePipeline>; Variant::COUNT],
 }
 
 impl LazyPipeline {
     fn new(shader: &'static ShaderSource) -> Self {
         Self {
             shader,
-            cell: std::sync::OnceLock::new(),
+            module: std::sync::OnceLock::new(),
+            cells: std::array::from_fn(|_| std::sync::OnceLock::new()),
         }
     }
 
     /// The pipeline, built now if needed (inside the caller's error scope).
-    fn get(&self, ctx: &GpuContext, layout: &wgpu::PipelineLayout) -> &wgpu::ComputePipeline {
-        self.cell.get_or_init(|| {
+    fn get(
+        &self,
+        ctx: &GpuContext,
+        layout: &wgpu::PipelineLayout,
+        variant: Variant,
+    ) -> &wgpu::ComputePipeline {
+        self.cells[variant.0 as usize].get_or_init(|| {
             let s = self.shader;
-            let module = ctx
-                .device
-                .create_shader_module(wgpu::ShaderModuleDescriptor {
-                    label: Some(s.file),
-                    source: wgpu::ShaderSource::Wgsl(s.source.into()),
-                });
+            let module = self.module.get_or_init(|| {
+                ctx.device
+                    .create_shader_module(wgpu::ShaderModuleDescriptor {
+                        label: Some(s.file),
+                        source: wgpu::ShaderSource::Wgsl(s.source.into()),
+                    })
+            });
+            let constants = variant.constants();
             ctx.device
                 .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                     label: Some(s.name),
                     layout: Some(layout),
-                    module: &module,
+                    module,
                     entry_point: Some(s.entry_point),
-                    compilation_options: Default::default(),
+                    compilation_options: wgpu::PipelineCompilationOptions {
+                        constants: &constants,
+                        ..Default::default()
+                    },
                     cache: None,
                 })
         })
@@ -319,7 +388,7 @@ impl PassPipelines {
     }
 
     /// The pipeline of a pass, built now if needed.
-    fn get(&self, ctx: &GpuContext, kind: PassKind) -> &wgpu::ComputePipeline {
+    fn get(&self, ctx: &GpuContext, kind: PassKind, variant: Variant) -> &wgpu::ComputePipeline {
         let lazy = match kind {
             PassKind::Upsample => &self.upsample,
             PassKind::Jitter => &self.jitter,
@@ -333,7 +402,7 @@ impl PassPipelines {
             PassKind::Advect => &self.advect,
             PassKind::Distortion => &self.distortion,
         };
-        lazy.get(ctx, &self.pipeline_layout)
+        lazy.get(ctx, &self.pipeline_layout, variant.for_kind(kind))
     }
 
     /// Builds the pipelines of a plain 2D synthesis (isometric or anisometric).
@@ -353,8 +422,23 @@ impl PassPipelines {
                 PassKind::Gather,
             ]
         };
+        // The usual variants: a non-tileable exemplar, k = 2, the full distance on the
+        // coarse levels and the projected one on the finest. Others are built when first
+        // used.
+        let usual = PassParams {
+            k: 2,
+            ..Default::default()
+        };
+        let projected = Variant::of(&usual);
+        let full = Variant::of(&PassParams {
+            full_distance: 1,
+            ..usual
+        });
         for k in kinds {
-            self.get(ctx, k);
+            self.get(ctx, k, projected);
+            if matches!(k, PassKind::Correct | PassKind::CorrectAniso) {
+                self.get(ctx, k, full);
+            }
         }
     }
 }
@@ -700,7 +784,7 @@ impl GpuSynthesizer {
                 timestamp_writes: None,
             });
             for (i, d) in schedule.iter().enumerate() {
-                let pipeline = self.pipelines.get(ctx, d.kind);
+                let pipeline = self.pipelines.get(ctx, d.kind, Variant::of(&d.params));
                 let [tx, ty] = d.threads();
                 if tx == 0 || ty == 0 {
                     continue;
@@ -719,14 +803,15 @@ impl GpuSynthesizer {
             for (m, map) in maps.iter().enumerate() {
                 let group = make_bind_group(map.colors, map.view);
                 let level = plan.levels.len() - 1;
+                let variant = Variant::of(&gather_params).for_kind(PassKind::Gather);
                 pass.set_pipeline(if map.magnify > 1 {
                     self.pipelines
                         .magnify
-                        .get(ctx, &self.pipelines.pipeline_layout)
+                        .get(ctx, &self.pipelines.pipeline_layout, variant)
                 } else {
                     self.pipelines
                         .gather_map
-                        .get(ctx, &self.pipelines.pipeline_layout)
+                        .get(ctx, &self.pipelines.pipeline_layout, variant)
                 });
                 pass.set_bind_group(
                     0,
