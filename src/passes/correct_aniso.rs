@@ -5,7 +5,10 @@
 //! Neighbourhood: for each diagonal `D` and `D' in {D, (D.x,0), (0,D.y)}`, the pixel
 //! `p + Δ` with `Δ = phi(J^-1 D')` (the immediate neighbour closest in direction)
 //! predicts `Et[S[p+Δ] - h J Δ + h D]`, read with bilinear interpolation (integer
-//! weights). Summed as in the isometric pass (`3 N_S(p;D)`).
+//! weights) where the projected distance scores (finest level), at the nearest texel
+//! where the full distance does (coarse levels: `Et` is smooth at the pixel scale there,
+//! the candidates are scored at their nearest texel too, and the four bilinear reads
+//! cost 20-25% of those levels' time). Summed as in the isometric pass (`3 N_S(p;D)`).
 //!
 //! Candidates: `S[p+d] + O_i(S[p+d]) - h J d` for the 3x3 block and `i = 1..k`, the
 //! similarity offsets taken at the exemplar pixel nearest to `S[p+d]`. The projected
@@ -90,7 +93,13 @@ pub fn prediction_sums(
             let s = coords[base + region_index([q[0] + delta[0], q[1] + delta[1]], p)];
             let o = scaled_jd(h, j, delta);
             let u = [s[0] - o[0] + h * one * d[0], s[1] - o[1] + h * one * d[1]];
-            let e = et_bilinear(p, t, u);
+            // Nearest texel with the full distance (coarse levels, smooth at the pixel
+            // scale; candidates are scored at their nearest texel too).
+            let e = if p.full_distance != 0 {
+                t.et[ex_index(nearest_texel(read_coord_fx(u, p), p), p)].map(i32::from)
+            } else {
+                et_bilinear(p, t, u)
+            };
             for c in 0..DIM {
                 out[k][c] += e[c];
             }
