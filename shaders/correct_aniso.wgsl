@@ -82,45 +82,45 @@ fn prediction_base(n: Neighbours, j: vec4<i32>, dp: vec2<i32>) -> vec2<i32> {
 }
 
 // The sum of the three predictions of Et at q + D (3 N_S(q;D)). A base equal to an
-// earlier one reuses its read: the same sum as three reads (mirror), at a third of the
-// memory traffic in coherent areas. With the full distance (coarse levels, where Et is
+// earlier one (same key: the same read) reuses its read: the same sum as three reads
+// (mirror), at a third of the memory traffic in coherent areas. With the full distance (coarse levels, where Et is
 // smooth at the pixel scale and candidates are scored at their nearest texel too) each
 // prediction reads the nearest texel; the projected distance (finest level) reads Et
 // bilinearly.
 fn prediction_sum(n: Neighbours, j: vec4<i32>, d: vec2<i32>) -> Vec8 {
     let off = (params.spacing << COORD_FRAC) * d;
-    let ba = prediction_base(n, j, d) + off;
-    let bb = prediction_base(n, j, vec2<i32>(d.x, 0)) + off;
-    let bc = prediction_base(n, j, vec2<i32>(0, d.y)) + off;
-    if (FULL_DISTANCE) {
-        let ta = nearest_texel(read_coord_fx(ba));
-        let tb = nearest_texel(read_coord_fx(bb));
-        let tc = nearest_texel(read_coord_fx(bc));
-        let a = et_texel(ta);
-        var b = a;
-        if (any(tb != ta)) {
-            b = et_texel(tb);
-        }
-        var c = a;
-        if (all(tc == tb)) {
-            c = b;
-        } else if (any(tc != ta)) {
-            c = et_texel(tc);
-        }
-        return Vec8(a.lo + b.lo + c.lo, a.hi + b.hi + c.hi);
-    }
-    let a = bilinear_et(ba);
+    let ka = prediction_key(prediction_base(n, j, d) + off);
+    let kb = prediction_key(prediction_base(n, j, vec2<i32>(d.x, 0)) + off);
+    let kc = prediction_key(prediction_base(n, j, vec2<i32>(0, d.y)) + off);
+    let a = prediction_read(ka);
     var b = a;
-    if (any(bb != ba)) {
-        b = bilinear_et(bb);
+    if (any(kb != ka)) {
+        b = prediction_read(kb);
     }
     var c = a;
-    if (all(bc == bb)) {
+    if (all(kc == kb)) {
         c = b;
-    } else if (any(bc != ba)) {
-        c = bilinear_et(bc);
+    } else if (any(kc != ka)) {
+        c = prediction_read(kc);
     }
     return Vec8(a.lo + b.lo + c.lo, a.hi + b.hi + c.hi);
+}
+
+// What a prediction reads, as a key that equal reads share: the nearest texel with the
+// full distance, the fixed-point position otherwise (FULL_DISTANCE is a pipeline
+// constant, so each pipeline keeps one branch).
+fn prediction_key(u: vec2<i32>) -> vec2<i32> {
+    if (FULL_DISTANCE) {
+        return nearest_texel(read_coord_fx(u));
+    }
+    return u;
+}
+
+fn prediction_read(k: vec2<i32>) -> Vec8 {
+    if (FULL_DISTANCE) {
+        return et_texel(k);
+    }
+    return bilinear_et(k);
 }
 
 @compute @workgroup_size(8, 8, 1)

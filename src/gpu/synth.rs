@@ -201,6 +201,8 @@ impl Variant {
         "PERIODIC",
     ];
     const COUNT: usize = 256;
+    /// The bits only the correction passes read: FULL_DISTANCE, KSET_INTERP and k.
+    const CORRECTION_ONLY: u8 = 0b1110_0110;
 
     /// The switches of a dispatch, from the parameters the CPU mirror reads.
     pub(crate) fn of(p: &PassParams) -> Self {
@@ -225,7 +227,7 @@ impl Variant {
     fn for_kind(self, kind: PassKind) -> Self {
         match kind {
             PassKind::Correct | PassKind::CorrectAniso => self,
-            _ => Self(self.0 & 0b11001),
+            _ => Self(self.0 & !Self::CORRECTION_ONLY),
         }
     }
 
@@ -1352,4 +1354,47 @@ pub(crate) fn read_buffer(ctx: &GpuContext, buffer: &wgpu::Buffer) -> Result<Vec
         .to_vec();
     buffer.unmap();
     Ok(data)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn variant_constants_follow_the_parameters() {
+        let p = PassParams {
+            tileable: 1,
+            full_distance: 1,
+            periodic: 1,
+            k: 3,
+            ..Default::default()
+        };
+        let v = Variant::of(&p);
+        let c = v.constants();
+        let get = |n: &str| c.iter().find(|(name, _)| *name == n).unwrap().1;
+        assert_eq!(
+            [
+                get("TILEABLE"),
+                get("FULL_DISTANCE"),
+                get("KSET_INTERP"),
+                get("MASKED"),
+                get("PERIODIC"),
+                get("K")
+            ],
+            [1.0, 1.0, 0.0, 0.0, 1.0, 3.0]
+        );
+        // Other passes keep the exemplar and output switches, not the correction's.
+        let g = v.for_kind(PassKind::Gather).constants();
+        let get = |n: &str| g.iter().find(|(name, _)| *name == n).unwrap().1;
+        assert_eq!(
+            [
+                get("TILEABLE"),
+                get("FULL_DISTANCE"),
+                get("PERIODIC"),
+                get("K")
+            ],
+            [1.0, 0.0, 1.0, 1.0]
+        );
+        assert_eq!(v.for_kind(PassKind::CorrectAniso), v);
+    }
 }
