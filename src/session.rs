@@ -222,7 +222,8 @@ impl SessionBuilder {
         self
     }
 
-    /// Called after each analysed level.
+    /// Called as the analysis goes: when each stage of a level starts, during the
+    /// similarity-set search and after each level ([`Progress::stage`] says which).
     pub fn on_progress(mut self, f: impl FnMut(Progress) + 'static) -> Self {
         self.progress = Some(Box::new(f));
         self

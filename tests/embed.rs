@@ -245,3 +245,56 @@ fn advection_from_a_session_and_a_bad_velocity_buffer() {
     assert!(advection.srgb_view(ctx).is_some() || ctx.adapter_info.backend == wgpu::Backend::Gl);
     ctx.take_uncaptured_errors().expect("no wgpu errors");
 }
+
+#[test]
+fn progress_reports_and_level_by_level_synthesis_gives_the_same_bytes() {
+    use texsyn::analysis::{Progress, Stage};
+    let log = std::rc::Rc::new(std::cell::RefCell::new(Vec::<Progress>::new()));
+    let session = Session::builder()
+        .exemplar(Exemplar::from_rgba8(48, 48, &gravel_rgba8_crop()).unwrap())
+        .size(40, 24)
+        .seed(5)
+        .on_progress({
+            let log = log.clone();
+            move |p| log.borrow_mut().push(p)
+        })
+        .build()
+        .expect("session");
+    let ctx = session.context();
+
+    // Analysis: the stack first, then each level's stages; the similarity search
+    // reports fractions; the last report says every level is done.
+    let stages = log.borrow().clone();
+    assert_eq!(stages[0].stage, Stage::Stack);
+    let last = *stages.last().unwrap();
+    assert_eq!((last.stage, last.done), (Stage::LevelDone, last.total));
+    assert_eq!(last.total as usize, session.analysis().levels.len());
+    assert!(stages
+        .iter()
+        .any(|p| p.stage == Stage::SimilaritySets && p.fraction > 0.0 && p.fraction <= 1.0));
+    assert!(stages.windows(2).all(|w| w[0].done <= w[1].done));
+    let done_reports = stages
+        .iter()
+        .filter(|p| p.stage == Stage::LevelDone)
+        .count();
+    assert_eq!(done_reports, last.total as usize);
+
+    // Synthesis: one report per level but the last (which the caller's own submission
+    // finishes), in order, and the same bytes as one submission.
+    let plain = session.run().expect("synthesis");
+    let (tx, rx) = std::sync::mpsc::channel();
+    session
+        .synthesizer()
+        .set_progress(Some(Box::new(move |done, total| {
+            tx.send((done, total)).unwrap()
+        })));
+    let split = session.run().expect("synthesis with progress");
+    session.synthesizer().set_progress(None);
+    let seen: Vec<(u32, u32)> = rx.try_iter().collect();
+    let total = session.analysis().levels.len() as u32;
+    assert_eq!(seen, (1..total).map(|d| (d, total)).collect::<Vec<_>>());
+    assert_eq!(split.synthesis.colors, plain.synthesis.colors);
+    assert_eq!(split.synthesis.coords, plain.synthesis.coords);
+    assert!(rx.try_iter().next().is_none());
+    ctx.take_uncaptured_errors().expect("no wgpu errors");
+}

@@ -188,8 +188,13 @@ fn insert(best: &mut [(f32, u32)], d: f32, c: u32) {
     best[i] = (d, c);
 }
 
-/// Offsets `(k-1)` per pixel, row-major.
-pub fn similarity_offsets(q: &SimilarityQuery, threads: usize) -> Vec<[i16; 2]> {
+/// Offsets `(k-1)` per pixel, row-major. `progress` gets the fraction of the search
+/// done after each of its steps (initialization, kd-tree, propagation sweeps).
+pub fn similarity_offsets(
+    q: &SimilarityQuery,
+    threads: usize,
+    progress: &mut dyn FnMut(f32),
+) -> Vec<[i16; 2]> {
     let (w, h) = (q.width as i32, q.height as i32);
     let (wu, n) = (w as usize, (w * h) as usize);
     let want = q.k.saturating_sub(1) as usize;
@@ -241,6 +246,13 @@ pub fn similarity_offsets(q: &SimilarityQuery, threads: usize) -> Vec<[i16; 2]> 
 
     // kd-tree search on fine levels, bounded by the initial sets.
     let use_kd = q.spacing <= KD_MAX_SPACING;
+    let iterations = if use_kd {
+        ITERATIONS_AFTER_KD
+    } else {
+        ITERATIONS
+    };
+    let steps = (1 + use_kd as usize + iterations) as f32;
+    progress(1.0 / steps);
     if use_kd {
         let members: Vec<u32> = (0..n as u32)
             .filter(|&p| {
@@ -279,15 +291,11 @@ pub fn similarity_offsets(q: &SimilarityQuery, threads: usize) -> Vec<[i16; 2]> 
             out
         })
         .concat();
+        progress(2.0 / steps);
     }
 
     let bands = (h as usize).div_ceil(BAND_ROWS);
     let max_radius = w.max(h);
-    let iterations = if use_kd {
-        ITERATIONS_AFTER_KD
-    } else {
-        ITERATIONS
-    };
     for it in 0..iterations {
         let forward = it % 2 == 0;
         let step = if forward { -1 } else { 1 };
@@ -376,6 +384,7 @@ pub fn similarity_offsets(q: &SimilarityQuery, threads: usize) -> Vec<[i16; 2]> 
         })
         .concat();
         state = next.concat();
+        progress((1 + use_kd as usize + it + 1) as f32 / steps);
     }
 
     if std::env::var_os("TEXSYN_PROFILE").is_some() {
@@ -507,12 +516,12 @@ mod tests {
                     spacing,
                     init: None,
                 };
-                let a = similarity_offsets(&q, 1);
+                let a = similarity_offsets(&q, 1, &mut |_| {});
                 assert_eq!(a.len(), (w * h * (k - 1)) as usize);
                 for threads in [2, 5] {
                     assert_eq!(
                         a,
-                        similarity_offsets(&q, threads),
+                        similarity_offsets(&q, threads, &mut |_| {}),
                         "thread count changed the result"
                     );
                 }
@@ -566,6 +575,7 @@ mod tests {
                         ..q
                     },
                     1,
+                    &mut |_| {},
                 );
                 let mut sum2 = 0.0;
                 for p in 0..(w * h) as usize {
@@ -601,7 +611,9 @@ mod tests {
             init: None,
         };
         // Every member is inside the exclusion zone: the pixel itself.
-        assert!(similarity_offsets(&q, 2).iter().all(|o| *o == [0, 0]));
-        assert!(similarity_offsets(&SimilarityQuery { k: 1, ..q }, 2).is_empty());
+        assert!(similarity_offsets(&q, 2, &mut |_| {})
+            .iter()
+            .all(|o| *o == [0, 0]));
+        assert!(similarity_offsets(&SimilarityQuery { k: 1, ..q }, 2, &mut |_| {}).is_empty());
     }
 }

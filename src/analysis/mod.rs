@@ -393,14 +393,50 @@ fn detect_tileable_checked(ex: &Exemplar) -> bool {
 }
 
 /// Progress of a running analysis, for display.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Progress {
     /// Levels done so far and in all.
     pub done: u32,
     pub total: u32,
+    /// What is being computed now (for level `done`, counting from 0 = coarsest);
+    /// [`Stage::LevelDone`] right after a level is finished.
+    pub stage: Stage,
+    /// How far the stage has got, 0 to 1 (similarity sets report their steps; other
+    /// stages report 0 when they start).
+    pub fraction: f32,
 }
 
-/// Analyses an exemplar. `progress` is called after each level.
+/// A step of the analysis of one level, as [`Progress`] reports it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Stage {
+    /// The Gaussian stack of every level (before level 0).
+    Stack,
+    /// 5x5 appearance vectors and their PCA to 8D.
+    Appearance,
+    /// The runtime 4-diagonal neighbourhoods and their projection.
+    Neighbourhoods,
+    /// The k-coherence similarity sets (the longest step on large exemplars).
+    SimilaritySets,
+    /// The level is finished (`done` counts it).
+    LevelDone,
+}
+
+impl Stage {
+    /// A short name for progress lines.
+    pub fn name(self) -> &'static str {
+        match self {
+            Stage::Stack => "Gaussian stack",
+            Stage::Appearance => "appearance vectors",
+            Stage::Neighbourhoods => "runtime neighbourhoods",
+            Stage::SimilaritySets => "similarity sets",
+            Stage::LevelDone => "done",
+        }
+    }
+}
+
+/// Analyses an exemplar. `progress` is called when each stage of a level starts, during
+/// the similarity-set search and after each level (a few seconds apart at most for
+/// exemplars of a few megapixels).
 pub fn analyze(
     ex: &Exemplar,
     opts: &AnalysisOptions,
@@ -470,6 +506,16 @@ pub fn analyze(
         }
     };
     let profile = std::env::var_os("TEXSYN_PROFILE").is_some();
+    let total = top + 1;
+    let mut report = |done: u32, stage: Stage, fraction: f32| {
+        progress(Progress {
+            done,
+            total,
+            stage,
+            fraction,
+        })
+    };
+    report(0, Stage::Stack, 0.0);
     let t_stack = std::time::Instant::now();
     let stack = stack::gaussian_stack(plane, top, tileable, threads);
     if profile {
@@ -479,10 +525,13 @@ pub fn analyze(
     for (l, plane) in stack.iter().enumerate() {
         let spacing = 1u32 << (top - l as u32);
         let margin = level_margin(ex.width, ex.height, spacing, tileable);
+        let done = l as u32;
+        report(done, Stage::Appearance, 0.0);
         let t0 = std::time::Instant::now();
         let (et, residual) =
             appearance::transformed_exemplar(plane, spacing, tileable, opts.appearance, threads);
         let t1 = std::time::Instant::now();
+        report(done, Stage::Neighbourhoods, 0.0);
         let q = appearance::quantize_level(&et, ex.width, ex.height, spacing, tileable, threads);
         let t2 = std::time::Instant::now();
         let exclusion = opts
@@ -495,6 +544,7 @@ pub fn analyze(
         // quarter of the analysis time of a 128x128 exemplar.
         let searched = |spacing: u32| 4 * spacing < ex.width.min(ex.height);
         let offsets = if searched(spacing) {
+            report(done, Stage::SimilaritySets, 0.0);
             kcoherence::similarity_offsets(
                 &kcoherence::SimilarityQuery {
                     features: &q.features,
@@ -513,6 +563,7 @@ pub fn analyze(
                         .map(|l| &l.offsets[..]),
                 },
                 threads,
+                &mut |f| report(done, Stage::SimilaritySets, f),
             )
         } else {
             vec![[0i16; 2]; (ex.width * ex.height * opts.k.saturating_sub(1)) as usize]
@@ -536,10 +587,7 @@ pub fn analyze(
             residual_variance: residual as f32,
             runtime_residual_variance: q.runtime_residual as f32,
         });
-        progress(Progress {
-            done: l as u32 + 1,
-            total: top + 1,
-        });
+        report(done + 1, Stage::LevelDone, 1.0);
     }
     Ok(Analysis {
         width: ex.width,

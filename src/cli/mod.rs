@@ -16,7 +16,7 @@ use std::time::Duration;
 
 use clap::{Args, Parser, Subcommand};
 
-use texsyn::analysis::Progress;
+use texsyn::analysis::{Progress, Stage};
 
 /// Errors of the CLI: the library's errors and a few of its own, all printed with
 /// their `Display`.
@@ -224,13 +224,36 @@ impl Ui {
         }
     }
 
-    /// Analysis progress callback: `analysing level 3/8`.
+    /// Analysis progress callback: `analysing level 3/8` after each level and, while a
+    /// level is under way, `analysing level 4/8: similarity sets 40%` (every step on a
+    /// terminal; otherwise only when 5 s have passed without a line, so that logs of
+    /// small exemplars stay one line per level and large ones never go quiet).
     pub fn analysis_progress(&self) -> impl FnMut(Progress) + '_ {
+        let mut last = std::time::Instant::now();
         move |p: Progress| {
-            self.progress(format!("analysing level {}/{}", p.done, p.total));
-            if p.done == p.total {
-                self.end_progress();
+            if p.stage == Stage::LevelDone {
+                self.progress(format!("analysing level {}/{}", p.done, p.total));
+                last = std::time::Instant::now();
+                if p.done == p.total {
+                    self.end_progress();
+                }
+                return;
             }
+            if !self.tty && last.elapsed() < std::time::Duration::from_secs(5) {
+                return;
+            }
+            last = std::time::Instant::now();
+            let percent = if p.fraction > 0.0 {
+                format!(" {:.0}%", 100.0 * p.fraction)
+            } else {
+                String::new()
+            };
+            let level = if p.stage == Stage::Stack {
+                String::new()
+            } else {
+                format!(" level {}/{}:", p.done + 1, p.total)
+            };
+            self.progress(format!("analysing{level} {}{percent}", p.stage.name()));
         }
     }
 

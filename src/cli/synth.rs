@@ -11,6 +11,9 @@ use texsyn::gpu::synth::GpuSynthesizer;
 use texsyn::gpu::GpuContext;
 use texsyn::passes::SynthParams;
 
+/// Outputs of at least this many pixels (2048x2048) report progress level by level.
+const LONG_SYNTHESIS_PIXELS: u64 = 1 << 22;
+
 use super::{
     channels_name, check_output_dir, check_output_size, fail, fmt_duration, parse_coherence,
     parse_randomness, parse_size, parse_window, AppearanceArgs, CliResult, Randomness, TileArgs,
@@ -419,6 +422,20 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
     let t = Instant::now();
     let synthesizer = GpuSynthesizer::new(&ctx, Arc::new(analysis))?;
     let upload_time = t.elapsed();
+    // Outputs of several megapixels take seconds (minutes on a CPU device): report each
+    // level, at most once a second. Smaller ones keep their single submission.
+    if !ui.quiet && width as u64 * height as u64 >= LONG_SYNTHESIS_PIXELS {
+        let (start, mut last) = (Instant::now(), None::<Instant>);
+        synthesizer.set_progress(Some(Box::new(move |done, total| {
+            if last.is_none_or(|t| t.elapsed().as_secs_f32() >= 1.0) {
+                last = Some(Instant::now());
+                eprintln!(
+                    "synthesizing {width}x{height}: level {done}/{total} done ({})",
+                    fmt_duration(start.elapsed())
+                );
+            }
+        })));
+    }
 
     // Material sets: every extra map is read (and checked) before any synthesis.
     // With --magnify they are full-resolution, cropped as the exemplar was.

@@ -175,7 +175,12 @@ pub struct GpuSynthesizer {
     /// keeps its field and window reuses it instead of rasterizing again.
     /// With the surface buffer of atlas synthesis (a placeholder otherwise).
     jacobians: Mutex<Option<(JacobianKey, wgpu::Buffer, wgpu::Buffer)>>,
+    /// [`Self::set_progress`]'s callback: (levels done, levels in all).
+    progress: Mutex<Option<LevelProgress>>,
 }
+
+/// A callback told `(levels done, levels in all)` during a synthesis.
+pub type LevelProgress = Box<dyn FnMut(u32, u32) + Send>;
 
 /// What a rasterized Jacobian buffer depends on: the field, the regions, and the atlas
 /// domain (by identity: a domain is immutable once shared).
@@ -538,6 +543,7 @@ impl GpuSynthesizer {
                 analysis: analysis.clone(),
                 scratch: Mutex::new(None),
                 jacobians: Mutex::new(None),
+                progress: Mutex::new(None),
             }
         })
     }
@@ -617,6 +623,73 @@ impl GpuSynthesizer {
             });
         }
         guard
+    }
+
+    /// Reports the progress of long syntheses: while set, [`Self::synthesize`],
+    /// [`Self::synthesize_to_host`], [`Self::synthesize_with_maps`] and the magnified
+    /// variants submit each level on its own, wait for it and call `f(levels done,
+    /// levels in all)`. That costs one GPU round trip per level (a few milliseconds on
+    /// lavapipe, but idle time on a real GPU), so set it for outputs that take seconds,
+    /// and `None` to go back to one submission. [`Self::encode`] never splits (it does
+    /// not submit). Results are the same bytes either way.
+    pub fn set_progress(&self, f: Option<LevelProgress>) {
+        *self.progress.lock().unwrap_or_else(|e| e.into_inner()) = f;
+    }
+
+    /// [`Self::record`] for the calls that submit the encoder themselves: with a
+    /// progress callback set, every level but the last is submitted and waited for
+    /// here (the caller's encoder then holds the last level, the map passes and
+    /// whatever it adds).
+    #[allow(clippy::too_many_arguments)]
+    fn record_reporting(
+        &self,
+        ctx: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        plan: &SynthPlan,
+        schedule: &[Dispatch],
+        target: &wgpu::TextureView,
+        maps: &[MapTarget<'_>],
+    ) -> Result<wgpu::Buffer> {
+        let mut hook = self.progress.lock().unwrap_or_else(|e| e.into_inner());
+        let Some(report) = hook.as_mut() else {
+            return ctx.scoped(|| self.record(ctx, encoder, plan, schedule, target, false, maps));
+        };
+        let levels = plan.levels.len() as u32;
+        let mut start = 0;
+        while start < schedule.len() {
+            let level = schedule[start].level;
+            let end = start
+                + schedule[start..]
+                    .iter()
+                    .take_while(|d| d.level == level)
+                    .count();
+            if end == schedule.len() {
+                return ctx.scoped(|| {
+                    self.record(ctx, encoder, plan, &schedule[start..], target, false, maps)
+                });
+            }
+            ctx.scoped(|| {
+                self.record(
+                    ctx,
+                    encoder,
+                    plan,
+                    &schedule[start..end],
+                    target,
+                    false,
+                    &[],
+                );
+                let done = std::mem::replace(
+                    encoder,
+                    ctx.device.create_command_encoder(&Default::default()),
+                );
+                ctx.queue.submit([done.finish()]);
+            })?;
+            wait(ctx)?;
+            report(level as u32 + 1, levels);
+            start = end;
+        }
+        // An empty schedule: only the map passes.
+        ctx.scoped(|| self.record(ctx, encoder, plan, &[], target, false, maps))
     }
 
     /// Records the first `count` dispatches of the synthesis into `encoder`, writing
@@ -884,11 +957,20 @@ impl GpuSynthesizer {
 
     /// Synthesizes and submits; returns when the GPU has finished.
     pub fn synthesize(&self, ctx: &GpuContext, params: &SynthParams) -> Result<GpuSynthesis> {
+        let plan = SynthPlan::new(&self.analysis, params)?;
+        self.check_output(ctx, &plan)?;
+        let schedule = plan.schedule(&self.analysis);
+        let texture = ctx.scoped(|| self.output_texture(ctx, params.width, params.height))?;
+        let view = texture.create_view(&Default::default());
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
-        let out = self.encode(ctx, &mut encoder, params)?;
+        self.record_reporting(ctx, &mut encoder, &plan, &schedule, &view, &[])?;
         ctx.scoped(|| ctx.queue.submit([encoder.finish()]))?;
         wait(ctx)?;
-        Ok(out)
+        Ok(GpuSynthesis {
+            texture,
+            width: params.width,
+            height: params.height,
+        })
     }
 
     /// Synthesizes and reads colours and coordinates back to the host.
@@ -1056,8 +1138,7 @@ impl GpuSynthesizer {
             })
             .collect();
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
-        let coords = ctx
-            .scoped(|| self.record(ctx, &mut encoder, &plan, &schedule, &view, false, &targets))?;
+        let coords = self.record_reporting(ctx, &mut encoder, &plan, &schedule, &view, &targets)?;
         let fin = plan.levels.last().unwrap();
         let fin_bytes = fin.size[0] as u64 * fin.size[1] as u64 * 8;
         let pitch =
@@ -1187,7 +1268,7 @@ impl GpuSynthesizer {
         self.check_output(ctx, &plan)?;
         let (w, h) = (params.width * factor, params.height * factor);
         let schedule = plan.schedule(a);
-        ctx.scoped(|| {
+        let (big, big_view, scratch_view, hi_buffer) = ctx.scoped(|| {
             let scratch = self.output_texture(ctx, params.width, params.height);
             let scratch_view = scratch.create_view(&Default::default());
             let big = self.output_texture(ctx, w, h);
@@ -1199,33 +1280,30 @@ impl GpuSynthesizer {
                     contents: bytemuck::cast_slice(hi),
                     usage: wgpu::BufferUsages::STORAGE,
                 });
-            let target = MapTarget {
-                colors: &hi_buffer,
-                view: &big_view,
-                map_kind: 0,
-                magnify: factor,
-                hi_size: [hi_width as i32, hi_height as i32],
-            };
-            let mut encoder = ctx.device.create_command_encoder(&Default::default());
-            self.record(
-                ctx,
-                &mut encoder,
-                &plan,
-                &schedule,
-                &scratch_view,
-                false,
-                &[target],
-            );
-            ctx.queue.submit([encoder.finish()]);
-            GpuSynthesis {
-                texture: big,
-                width: w,
-                height: h,
-            }
-        })
-        .and_then(|out| {
-            wait(ctx)?;
-            Ok(out)
+            (big, big_view, scratch_view, hi_buffer)
+        })?;
+        let target = MapTarget {
+            colors: &hi_buffer,
+            view: &big_view,
+            map_kind: 0,
+            magnify: factor,
+            hi_size: [hi_width as i32, hi_height as i32],
+        };
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        self.record_reporting(
+            ctx,
+            &mut encoder,
+            &plan,
+            &schedule,
+            &scratch_view,
+            &[target],
+        )?;
+        ctx.scoped(|| ctx.queue.submit([encoder.finish()]))?;
+        wait(ctx)?;
+        Ok(GpuSynthesis {
+            texture: big,
+            width: w,
+            height: h,
         })
     }
 
