@@ -400,11 +400,15 @@ pub fn rasterize_region(
 
 /// A direction-and-scale field from an image the size of the output: channel 0 is the
 /// texture's rotation (0..1 -> 0..2 pi), channel 1 its magnification on a log scale
-/// (0..1 -> 1/8..8, 0.5 = 1); a grey image is rotation only.
+/// (0..1 -> 1/8..8, 0.5 = 1); a grey image (grey+alpha, a 1-channel EXR) is rotation
+/// only, a 2-channel EXR (angle, log scale) is both.
 pub fn load_direction_scale_image(path: &Path) -> Result<FieldMap> {
-    let img = crate::image_io::open_image(path)?;
+    let (img, exr_channels) = crate::image_io::open_image_exr_channels(path)?;
     let (w, h) = (img.width(), img.height());
-    let has_scale = img.color().channel_count() >= 2 && img.color().has_color();
+    let has_scale = match exr_channels {
+        Some(n) => n >= 2,
+        None => img.color().channel_count() >= 2 && img.color().has_color(),
+    };
     let rgb = img.to_rgb32f();
     let mut jacobians = Vec::with_capacity(w as usize * h as usize);
     for (i, p) in rgb.pixels().enumerate() {

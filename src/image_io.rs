@@ -6,16 +6,21 @@
 //!   content (the extension is only a fallback, e.g. for TGA, which has no signature).
 //!   8-bit, 16-bit and float samples; grey, grey+alpha, RGB and RGBA. **Alpha is ignored**:
 //!   grey and grey+alpha exemplars have 1 channel, everything else 3.
+//! * 1- and 2-channel OpenEXRs, which the `image` crate refuses, are read with the `exr`
+//!   crate (see [`open_image`] for the channel rule): a 1-channel EXR (`Y`, or any single
+//!   channel) is a grey exemplar; a 2-channel one is grey + alpha when one channel is
+//!   alpha (`A`), and a two-value field (flow, coordinate map, `R`/`G`) otherwise.
 //! * [`write_atomic`]: write to a temporary file next to the target, fsync, rename over
 //!   the target. A failed or interrupted write never leaves a partial file at the target.
 //! * [`save_image_atomic`]: RGBA8 pixels to grey / RGB / RGBA in the format named by the
 //!   extension.
 //! * [`save_coords_exr_atomic`] / [`load_coords_exr`]: the synthesized exemplar
-//!   coordinates as a 32-bit float OpenEXR (R = x, G = y, B = 0).
+//!   coordinates as a 32-bit float OpenEXR (R = x, G = y, B = 0); a 2-channel (`R`, `G`)
+//!   float EXR is read as well.
 
 use std::ffi::OsString;
 use std::fs::{self, File, OpenOptions};
-use std::io::{BufWriter, Cursor, Write};
+use std::io::{BufReader, BufWriter, Cursor, Write};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -32,6 +37,9 @@ use crate::error::{Error, Result};
 /// detected from the file's content (falling back on the extension).
 ///
 /// * `channels` is 1 for grey and grey+alpha images, 3 otherwise (alpha is ignored).
+///   A 1-channel OpenEXR is grey; a 2-channel OpenEXR is grey + alpha when one of its
+///   channels is alpha (`A`; the other is the luminance), and is refused otherwise (two
+///   channels such as `R`, `G` or `U`, `V` are a field, not a picture).
 /// * `values` keep the full source precision (16-bit samples are divided by 65535, not
 ///   first reduced to 8 bits); float samples (HDR, EXR) must be finite, at most 1% of
 ///   them outside [0, 1] (more is an HDR image: an error), and are clamped to [0, 1].
@@ -41,16 +49,38 @@ use crate::error::{Error, Result};
 /// or corrupt file is [`Error::BadImage`] with the decoder's reason; an image smaller than
 /// [`crate::analysis::MIN_EXEMPLAR_SIZE`] on either side is [`Error::ExemplarTooSmall`].
 pub fn load_exemplar(path: &Path) -> Result<Exemplar> {
-    let img = decode_image(path)?;
-    exemplar_from(&img, Some(path))
+    match decode_any(path)? {
+        Decoded::Image(img) => exemplar_from(&img, Some(path)),
+        Decoded::Exr(exr) => exemplar_from_exr(&exr, path),
+    }
 }
 
 /// A material map (`--also`): its size, its channel count as stored (1 grey, 2 grey +
 /// alpha, 3 RGB, 4 RGBA) and its pixels as RGBA8 (grey replicated into RGB; alpha kept,
 /// 255 where there is none). Unlike [`load_exemplar`], alpha is data here (opacity,
-/// packed roughness...), so it is resynthesized and written back.
+/// packed roughness...), so it is resynthesized and written back. A 1-channel OpenEXR is
+/// grey, a 2-channel one with an alpha (`A`) channel grey + alpha, any other 2-channel one
+/// RGB with the two channels in R and G and B = 0 (floats clamped to [0, 1]).
 pub fn load_material_map(path: &Path) -> Result<(u32, u32, u32, Vec<[u8; 4]>)> {
-    let img = decode_image(path)?;
+    let img = match decode_any(path)? {
+        Decoded::Image(img) => img,
+        Decoded::Exr(exr) if exr.channels() == 1 || exr.alpha => {
+            let to8 = |v: f32| (f32_to_unit(v) * 255.0).round() as u8;
+            let pixels = if exr.channels() == 1 {
+                exr.data.iter().map(|&v| grey8(to8(v))).collect()
+            } else {
+                exr.data
+                    .chunks_exact(2)
+                    .map(|p| {
+                        let g = to8(p[0]);
+                        [g, g, g, to8(p[1])]
+                    })
+                    .collect()
+            };
+            return Ok((exr.width, exr.height, exr.channels() as u32, pixels));
+        }
+        Decoded::Exr(exr) => exr.to_image(),
+    };
     let channels = img.color().channel_count() as u32;
     let pixels = img.to_rgba8().pixels().map(|p| p.0).collect();
     Ok((img.width(), img.height(), channels.clamp(1, 4), pixels))
@@ -246,14 +276,305 @@ fn push_rgbf(values: &mut Vec<f32>, colors: &mut Vec<[u8; 4]>, c: [f32; 3]) {
     colors.push([q[0], q[1], q[2], 255]);
 }
 
+/// A grey exemplar from a 1-channel, or a grey + alpha 2-channel, OpenEXR (same float
+/// rules as [`exemplar_from_image`]); other 2-channel EXRs are refused.
+fn exemplar_from_exr(exr: &FewChannelExr, path: &Path) -> Result<Exemplar> {
+    if exr.channels() == 2 && !exr.alpha {
+        return Err(Error::BadImage {
+            path: path.to_path_buf(),
+            reason: format!(
+                "a 2-channel OpenEXR ({}) is a two-value field (flow, coordinates...), not a \
+                 picture; an exemplar needs grey (1 channel), grey + alpha (e.g. Y, A), RGB \
+                 or RGBA channels",
+                exr.names.join(", ")
+            ),
+        });
+    }
+    let (width, height) = (exr.width, exr.height);
+    check_exemplar_size(width, height)?;
+    let c = exr.channels();
+    let luma = || exr.data.iter().step_by(c).copied();
+    check_float_samples(luma().map(|v| [v; 3]), width)
+        .map_err(|reason| Error::InvalidParameter(format!("{}: {reason}", path.display())))?;
+    let values: Vec<f32> = luma().map(f32_to_unit).collect();
+    let colors = values
+        .iter()
+        .map(|&v| grey8((v * 255.0).round() as u8))
+        .collect();
+    Ok(Exemplar {
+        width,
+        height,
+        channels: 1,
+        values,
+        colors,
+    })
+}
+
 /// Opens and decodes an image, deciding the format by content (any format and pixel
 /// type; for auxiliary inputs such as fields and masks). Missing / unreadable
 /// file: `Error::Io`; anything the decoder rejects: `Error::BadImage`.
+///
+/// OpenEXRs with 1 or 2 channels (which the `image` crate refuses) are read with the
+/// `exr` crate (the first non-deep layer, largest resolution level, display window) and
+/// returned as float RGB:
+/// * 1 channel (`Y`, or any single channel) `v`: `(v, v, v)`, like a grey image;
+/// * 2 channels: `(first, second, 0)`, where the pair is `R`, `G` when the channels are
+///   named so; otherwise, when one channel is alpha (`A`), the other channel then `A`;
+///   otherwise the two channels in alphabetical (byte) order of their names, e.g. `X`,
+///   `Y` or `U`, `V`. Names are compared after their last `.` (layer prefix), ignoring
+///   case. Flows (`image:F.exr`) and coordinate maps thus read x from channel 0 and y
+///   from channel 1.
+///
+/// Such files are size-checked (at most 512 MiB of samples, as for the `image` crate)
+/// before their pixels are read; sample values are not checked here (NaN included):
+/// each consumer checks what it needs.
 pub fn open_image(path: &Path) -> Result<DynamicImage> {
     decode_image(path)
 }
 
+/// [`open_image`], and for a 1- or 2-channel OpenEXR its count of value channels (alpha
+/// not counted; `None` for every other file, whose [`DynamicImage`] colour type tells):
+/// a grey EXR comes out as RGB, and field readers need to know it had one value per pixel.
+pub fn open_image_exr_channels(path: &Path) -> Result<(DynamicImage, Option<u32>)> {
+    Ok(match decode_any(path)? {
+        Decoded::Image(img) => (img, None),
+        Decoded::Exr(exr) => {
+            let n = exr.names.len() as u32 - exr.alpha as u32;
+            (exr.to_image(), Some(n))
+        }
+    })
+}
+
 fn decode_image(path: &Path) -> Result<DynamicImage> {
+    Ok(match decode_any(path)? {
+        Decoded::Image(img) => img,
+        Decoded::Exr(exr) => exr.to_image(),
+    })
+}
+
+/// The number of frames of an animated GIF or PNG (APNG), which every reader here
+/// takes the first frame of; `None` for other files and for files that cannot be read
+/// (loading them says why).
+pub fn animation_frames(path: &Path) -> Option<usize> {
+    use image::AnimationDecoder;
+    let reader = image::ImageReader::open(path)
+        .ok()?
+        .with_guessed_format()
+        .ok()?;
+    let format = reader.format()?;
+    let file = BufReader::new(File::open(path).ok()?);
+    match format {
+        ImageFormat::Gif => {
+            let decoder = image::codecs::gif::GifDecoder::new(file).ok()?;
+            Some(decoder.into_frames().take_while(|f| f.is_ok()).count())
+        }
+        ImageFormat::Png => {
+            let decoder = image::codecs::png::PngDecoder::new(file).ok()?;
+            if !decoder.is_apng().ok()? {
+                return None;
+            }
+            let frames = decoder.apng().ok()?.into_frames();
+            Some(frames.take_while(|f| f.is_ok()).count())
+        }
+        _ => None,
+    }
+}
+
+/// A decoded file: anything the `image` crate reads, or a 1- or 2-channel OpenEXR.
+enum Decoded {
+    Image(DynamicImage),
+    Exr(FewChannelExr),
+}
+
+/// A 1- or 2-channel OpenEXR read with the `exr` crate (see [`open_image`]).
+struct FewChannelExr {
+    width: u32,
+    height: u32,
+    /// The channel names, in the order of `data` (see [`open_image`] for the rule).
+    names: Vec<String>,
+    /// 2 channels, the second of which is alpha.
+    alpha: bool,
+    /// Row-major, `names.len()` interleaved samples per pixel, 0 outside the data window.
+    data: Vec<f32>,
+}
+
+impl FewChannelExr {
+    fn channels(&self) -> usize {
+        self.names.len()
+    }
+
+    /// Float RGB: `(v, v, v)` for 1 channel, `(a, b, 0)` for 2.
+    fn to_image(&self) -> DynamicImage {
+        let rgb: Vec<f32> = if self.channels() == 1 {
+            self.data.iter().flat_map(|&v| [v; 3]).collect()
+        } else {
+            self.data
+                .chunks_exact(2)
+                .flat_map(|p| [p[0], p[1], 0.0])
+                .collect()
+        };
+        DynamicImage::ImageRgb32F(
+            image::Rgb32FImage::from_raw(self.width, self.height, rgb)
+                .expect("buffer sized for the image"),
+        )
+    }
+}
+
+/// The most bytes a 1- or 2-channel EXR may take to decode (the `image` crate's default
+/// allocation limit).
+const MAX_EXR_ALLOC: u64 = 512 * 1024 * 1024;
+
+/// The last `.`-separated part of an EXR channel name (`diffuse.R` -> `R`).
+fn channel_base(name: &str) -> &str {
+    name.rsplit('.').next().unwrap_or(name)
+}
+
+/// Runs `f` (exr crate code on untrusted input), turning a panic into an error message.
+fn no_panic<T>(
+    f: impl FnOnce() -> std::result::Result<T, String>,
+) -> std::result::Result<T, String> {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(f))
+        .unwrap_or_else(|_| Err("the OpenEXR decoder failed on this file (corrupt data)".into()))
+}
+
+/// Channel names of the first non-deep layer of an EXR, or `None` when its header cannot
+/// be read.
+fn exr_channel_names(path: &Path) -> Option<Vec<String>> {
+    no_panic(|| {
+        let file = File::open(path).map_err(|e| e.to_string())?;
+        let meta = exr::meta::MetaData::read_from_buffered(BufReader::new(file), false)
+            .map_err(|e| e.to_string())?;
+        let header = meta.headers.iter().find(|h| !h.deep).ok_or("")?;
+        Ok(header
+            .channels
+            .list
+            .iter()
+            .map(|c| c.name.to_string())
+            .collect())
+    })
+    .ok()
+}
+
+/// Reads a 1- or 2-channel EXR (see [`open_image`]); errors are the reason, in words.
+fn read_few_channel_exr(path: &Path) -> std::result::Result<FewChannelExr, String> {
+    use exr::prelude::traits::*;
+    let exr_err = |e: exr::error::Error| match e {
+        exr::error::Error::Io(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => {
+            format!("the file is truncated ({io})")
+        }
+        // What the exr crate says when a chunk lies past the end of the file.
+        exr::error::Error::Invalid(m) if m.contains("missing bytes") => {
+            format!("the file is truncated or corrupt ({m})")
+        }
+        e => e.to_string(),
+    };
+    let open = || {
+        File::open(path)
+            .map(BufReader::new)
+            .map_err(|e| e.to_string())
+    };
+    no_panic(|| {
+        // Size check before any pixel buffer is allocated.
+        let meta = exr::meta::MetaData::read_from_buffered(open()?, false).map_err(exr_err)?;
+        let header = meta
+            .headers
+            .iter()
+            .find(|h| !h.deep)
+            .ok_or("the OpenEXR holds only deep data, which texsyn does not read")?;
+        if header
+            .channels
+            .list
+            .iter()
+            .any(|c| c.sampling != exr::math::Vec2(1, 1))
+        {
+            return Err("subsampled OpenEXR channels are not supported".into());
+        }
+        let display = header.shared_attributes.display_window;
+        let data_bytes = header.layer_size.area() as u128 * header.channels.bytes_per_pixel as u128;
+        let out_bytes = display.size.area() as u128 * 12;
+        if data_bytes + out_bytes > MAX_EXR_ALLOC as u128 {
+            return Err(format!(
+                "the {}x{} OpenEXR needs more than {} MiB to decode",
+                display.size.width(),
+                display.size.height(),
+                MAX_EXR_ALLOC >> 20
+            ));
+        }
+
+        let img = exr::prelude::read()
+            .no_deep_data()
+            .largest_resolution_level()
+            .all_channels()
+            .first_valid_layer()
+            .all_attributes()
+            .non_parallel()
+            .from_buffered(open()?)
+            .map_err(exr_err)?;
+        let layer = &img.layer_data;
+        let display = img.attributes.display_window;
+        let (w, h) = (display.size.width(), display.size.height());
+        if w == 0 || h == 0 || w > u32::MAX as usize || h > u32::MAX as usize {
+            return Err(format!("the OpenEXR's display window is {w}x{h}"));
+        }
+        let list = &layer.channel_data.list;
+        let mut order: Vec<usize> = (0..list.len()).collect();
+        order.sort_by(|&a, &b| list[a].name.to_string().cmp(&list[b].name.to_string()));
+        let base = |i: usize| channel_base(&list[i].name.to_string()).to_ascii_uppercase();
+        let mut alpha = false;
+        match order.len() {
+            1 => {}
+            2 => {
+                let (b0, b1) = (base(order[0]), base(order[1]));
+                if b0 == "G" && b1 == "R" {
+                    order.swap(0, 1);
+                } else if b0 == "A" && b1 != "A" {
+                    order.swap(0, 1);
+                    alpha = true;
+                } else if b1 == "A" && b0 != "A" {
+                    alpha = true;
+                }
+            }
+            n => return Err(format!("expected 1 or 2 channels, the layer has {n}")),
+        }
+        let (lw, lh) = (layer.size.width(), layer.size.height());
+        if order.iter().any(|&i| list[i].sample_data.len() != lw * lh) {
+            return Err("a channel holds the wrong number of samples (corrupt file)".into());
+        }
+        let c = order.len();
+        let mut data = vec![0f32; w * h * c];
+        // Data window pixel (x, y) is display pixel (x + dx, y + dy).
+        let dx = layer.attributes.layer_position.x() as i64 - display.position.x() as i64;
+        let dy = layer.attributes.layer_position.y() as i64 - display.position.y() as i64;
+        for y in 0..lh {
+            let ty = y as i64 + dy;
+            if ty < 0 || ty >= h as i64 {
+                continue;
+            }
+            for x in 0..lw {
+                let tx = x as i64 + dx;
+                if tx < 0 || tx >= w as i64 {
+                    continue;
+                }
+                let to = (ty as usize * w + tx as usize) * c;
+                for (k, &ch) in order.iter().enumerate() {
+                    data[to + k] = list[ch]
+                        .sample_data
+                        .value_by_flat_index(y * lw + x)
+                        .to_f32();
+                }
+            }
+        }
+        Ok(FewChannelExr {
+            width: w as u32,
+            height: h as u32,
+            names: order.iter().map(|&i| list[i].name.to_string()).collect(),
+            alpha,
+            data,
+        })
+    })
+}
+
+fn decode_any(path: &Path) -> Result<Decoded> {
     let io_err = |source| Error::Io {
         path: path.to_path_buf(),
         source,
@@ -281,18 +602,40 @@ fn decode_image(path: &Path) -> Result<DynamicImage> {
                 .into(),
         });
     }
-    reader.decode().map_err(|e| {
-        let reason = match &e {
-            image::ImageError::IoError(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => {
-                format!("the file is truncated ({e})")
-            }
-            _ => e.to_string(),
-        };
-        Error::BadImage {
-            path: path.to_path_buf(),
-            reason,
+    let is_exr = reader.format() == Some(ImageFormat::OpenExr);
+    let e = match reader.decode() {
+        Ok(img) => return Ok(Decoded::Image(img)),
+        Err(e) => e,
+    };
+    let bad = |reason: String| Error::BadImage {
+        path: path.to_path_buf(),
+        reason,
+    };
+    let mut reason = match &e {
+        image::ImageError::IoError(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => {
+            format!("the file is truncated ({e})")
         }
-    })
+        _ => e.to_string(),
+    };
+    // The `image` crate reads only RGB(A) EXRs: read 1- and 2-channel ones with `exr`.
+    if is_exr {
+        if let Some(names) = exr_channel_names(path) {
+            if matches!(names.len(), 1 | 2) {
+                return read_few_channel_exr(path).map(Decoded::Exr).map_err(|r| {
+                    bad(format!(
+                        "cannot decode the {}-channel OpenEXR ({}): {r}",
+                        names.len(),
+                        names.join(", ")
+                    ))
+                });
+            }
+            reason = format!(
+                "{reason} (its channels: {}; texsyn reads RGB, RGBA, 1- and 2-channel OpenEXRs)",
+                names.join(", ")
+            );
+        }
+    }
+    Err(bad(reason))
 }
 
 // ---------------------------------------------------------------------------------------
@@ -619,13 +962,14 @@ pub fn save_coords_exr_f32_atomic(
 /// Reads a coordinate map as floats (exemplar pixels, not rounded): `(width, height,
 /// coords)`. Same checks as [`load_coords_exr`].
 pub fn load_coords_exr_f32(path: &Path) -> Result<(u32, u32, Vec<[f32; 2]>)> {
-    // The decoder's own message (e.g. for a 2-channel EXR) does not say what is expected.
+    // The decoder's own message (e.g. for a 4-channel XYZW EXR) does not say what is
+    // expected.
     let img = decode_image(path).map_err(|e| match e {
         Error::BadImage { path, reason } => Error::BadImage {
             path,
             reason: format!(
                 "{reason}; a coordinate map is an RGB or RGBA float EXR (R = x, G = y), as \
-                 --coords-out writes"
+                 --coords-out writes, or a 2-channel float EXR (R, G or e.g. X, Y)"
             ),
         },
         other => other,
@@ -658,7 +1002,7 @@ pub fn load_coords_exr_f32(path: &Path) -> Result<(u32, u32, Vec<[f32; 2]>)> {
 }
 
 /// Reads a coordinate map written by [`save_coords_exr_atomic`] (any float RGB/RGBA image
-/// the `image` crate reads): returns `(width, height, coords)` with R and G rounded to the
+/// the `image` crate reads, or a 2-channel float EXR, see [`open_image`]): returns `(width, height, coords)` with R and G rounded to the
 /// nearest integer. Non-float images and non-finite or out-of-range values are
 /// [`Error::BadImage`].
 pub fn load_coords_exr(path: &Path) -> Result<(u32, u32, Vec<[i32; 2]>)> {

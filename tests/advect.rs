@@ -373,6 +373,7 @@ fn bad_velocities_and_time_steps() {
 mod common;
 
 /// `texsyn advect` end to end (2D frames folder, GIF, a mesh) and its bad inputs.
+#[cfg(feature = "cli")]
 #[test]
 fn advect_cli() {
     let dir = common::TempDir::new("advect-cli");
@@ -574,6 +575,7 @@ fn advect_cli() {
     assert!(stderr.contains("missing.png"), "{stderr}");
 }
 
+#[cfg(feature = "cli")]
 fn png_dims(path: &std::path::Path) -> (u32, u32) {
     let img = image::open(path).unwrap();
     (img.width(), img.height())
@@ -581,6 +583,7 @@ fn png_dims(path: &std::path::Path) -> (u32, u32) {
 
 /// Advection over a surface atlas: velocities from 3D vectors projected into the atlas,
 /// gutters refilled through the indirection maps; GPU = CPU.
+#[cfg(feature = "xatlas")]
 #[test]
 fn surface_advection_gpu_matches_cpu() {
     let (a, synth, _) = setup(32);

@@ -5,6 +5,7 @@
 //! adapter (lavapipe in CI).
 
 use std::path::{Path, PathBuf};
+#[cfg(feature = "cli")]
 use std::process::{Command, Output};
 use std::sync::atomic::{AtomicU32, Ordering};
 
@@ -18,6 +19,7 @@ use texsyn::analysis::{
 use texsyn::quality::{self, FloatImage};
 use texsyn::{Error, Session};
 
+#[cfg(feature = "cli")]
 const BIN: &str = env!("CARGO_BIN_EXE_texsyn");
 const BRICK: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/brick.png");
 
@@ -40,6 +42,7 @@ impl TempDir {
     fn path(&self, name: &str) -> PathBuf {
         self.0.join(name)
     }
+    #[cfg(feature = "cli")]
     fn files(&self) -> Vec<String> {
         let mut v: Vec<String> = std::fs::read_dir(&self.0)
             .unwrap()
@@ -481,6 +484,7 @@ fn analysis_file_keeps_the_appearance_settings() {
 
 // ---- command line -----------------------------------------------------------------------
 
+#[cfg(feature = "cli")]
 fn texsyn(dir: &TempDir, args: &[&str]) -> Output {
     Command::new(BIN)
         .args(args)
@@ -489,6 +493,7 @@ fn texsyn(dir: &TempDir, args: &[&str]) -> Output {
         .expect("cannot run the texsyn binary")
 }
 
+#[cfg(feature = "cli")]
 fn fails(dir: &TempDir, args: &[&str], code: i32, needles: &[&str]) {
     let before = dir.files();
     let out = texsyn(dir, args);
@@ -512,6 +517,7 @@ fn fails(dir: &TempDir, args: &[&str], code: i32, needles: &[&str]) {
     assert_eq!(dir.files(), before, "texsyn {args:?} left files behind");
 }
 
+#[cfg(feature = "cli")]
 #[test]
 fn cli_feature_mask_and_appearance() {
     let dir = TempDir::new("cli");

@@ -120,8 +120,14 @@ pub fn build_atlas(mesh: &Mesh, opts: &AtlasOptions) -> Result<Atlas> {
             Err(why) => Some(format!("its TEXCOORD_0 is not a usable atlas ({why})")),
         },
     };
-    let mut atlas = generate(mesh, opts)?;
-    atlas.note = keep_reason.unwrap_or_default();
+    let reason = keep_reason.unwrap_or_default();
+    let mut atlas = generate(mesh, opts).map_err(|e| match e {
+        Error::InvalidParameter(m) if !cfg!(feature = "xatlas") => {
+            Error::InvalidParameter(format!("{reason}, and {m}"))
+        }
+        e => e,
+    })?;
+    atlas.note = reason;
     Ok(atlas)
 }
 
@@ -333,12 +339,24 @@ pub fn level_size(size: u32, steps: u32) -> u32 {
     s
 }
 
+/// Without the `xatlas` feature there is no atlas generator.
+#[cfg(not(feature = "xatlas"))]
+fn generate(_mesh: &Mesh, _opts: &AtlasOptions) -> Result<Atlas> {
+    Err(Error::InvalidParameter(
+        "this build of texsyn cannot generate an atlas (its `xatlas` feature is off): give the \
+         mesh a usable TEXCOORD_0 atlas, or build texsyn with the `xatlas` feature"
+            .into(),
+    ))
+}
+
 /// One xatlas packing: vertices, indices, per-triangle charts, chart count and the
 /// packed extent in xatlas texels (padding included).
+#[cfg(feature = "xatlas")]
 type Packed = (Vec<xatlas_rs::Vertex>, Vec<u32>, Vec<u32>, u32, f64);
 
 /// Runs xatlas: charts, parameterization, packing into one `size` x `size` atlas with
 /// `gutter` texels between charts.
+#[cfg(feature = "xatlas")]
 fn generate(mesh: &Mesh, opts: &AtlasOptions) -> Result<Atlas> {
     let area = mesh.surface_area();
     if area.is_nan() || area <= 0.0 || area.is_infinite() {

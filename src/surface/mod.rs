@@ -4,6 +4,7 @@
 
 pub mod atlas;
 pub mod flow;
+#[cfg(feature = "gltf")]
 pub mod gltf_io;
 pub mod maps;
 pub mod mesh;
@@ -12,7 +13,7 @@ pub mod render;
 pub mod seams;
 pub mod tangent_field;
 
-#[cfg(not(target_env = "msvc"))]
+#[cfg(all(feature = "xatlas", not(target_env = "msvc")))]
 mod xatlas_link;
 
 pub use mesh::Mesh;
