@@ -1186,3 +1186,68 @@ fn review_findings_fail_cleanly() {
     );
     assert!(json.contains("\"mean_warped_diff\":null"), "{json}");
 }
+
+/// An animated GIF or PNG exemplar: its first frame is used, with a warning; a still
+/// GIF gets none. `--also` inputs whose names contain `=`.
+#[test]
+fn animated_exemplars_warn_and_also_names_with_equals() {
+    use image::codecs::gif::GifEncoder;
+    use image::{Delay, Frame, RgbaImage};
+    let dir = TempDir::new("anim");
+    let frame = |shift: u32| {
+        RgbaImage::from_fn(32, 32, |x, y| {
+            let v = (((x * 7 + y * 13 + shift * 5) % 31) * 8) as u8;
+            image::Rgba([v, 255 - v, (x * 8) as u8, 255])
+        })
+    };
+    let frames: Vec<Frame> = (0..3)
+        .map(|i| Frame::from_parts(frame(i), 0, 0, Delay::from_numer_denom_ms(100, 1)))
+        .collect();
+    {
+        let f = std::fs::File::create(dir.path("anim.gif")).unwrap();
+        GifEncoder::new(f).encode_frames(frames).unwrap();
+    }
+    frame(0).save(dir.path("still.gif")).unwrap();
+    assert_eq!(
+        texsyn::image_io::animation_frames(&dir.path("anim.gif")),
+        Some(3)
+    );
+    assert_eq!(
+        texsyn::image_io::animation_frames(&dir.path("still.gif")),
+        Some(1)
+    );
+    assert_eq!(
+        texsyn::image_io::animation_frames(Path::new(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/assets/gravel.png"
+        ))),
+        None
+    );
+    for (name, warned) in [("anim.gif", true), ("still.gif", false)] {
+        let out = texsyn(&dir, &["synth", name, "-o", "o.png", "--size", "24"]);
+        let stderr = text(&out.stderr);
+        assert!(out.status.success(), "{stderr}");
+        assert_eq!(
+            stderr.contains("is an animation of 3 frames; texsyn uses its first frame"),
+            warned,
+            "{name}: {stderr}"
+        );
+    }
+
+    // --also with '=' in the input's name: the split whose IN exists.
+    frame(1).save(dir.path("rough=0.5.png")).unwrap();
+    ok(
+        &dir,
+        &[
+            "synth",
+            "still.gif",
+            "-o",
+            "o2.png",
+            "--size",
+            "24",
+            "--also",
+            "rough=0.5.png=r=1.png",
+        ],
+    );
+    assert_eq!(png_size(&dir.path("r=1.png")), (24, 24));
+}

@@ -305,7 +305,7 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
             args.size[0], args.size[1]
         )));
     }
-    let source = read_source(&args.exemplar, None, args.tile.get())?;
+    let source = read_source(ui, &args.exemplar, None, args.tile.get())?;
     let ctx = GpuContext::headless()?;
     ui.info(format!("adapter: {}", ctx.describe()));
     if args.mesh.is_none() {

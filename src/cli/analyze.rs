@@ -68,7 +68,7 @@ pub fn run(ui: &Ui, args: AnalyzeArgs) -> CliResult<()> {
     args.appearance.apply(&mut options)?;
 
     let t0 = Instant::now();
-    let exemplar = texsyn::image_io::load_exemplar(&args.exemplar)?;
+    let exemplar = ui.load_exemplar(&args.exemplar)?;
     let load_time = t0.elapsed();
 
     let t1 = Instant::now();

@@ -131,7 +131,7 @@ pub fn run(ui: &Ui, args: BenchArgs) -> CliResult<()> {
         file_field = Some(spec.resolve([0, 0], *w, *h)?);
     }
     let t = Instant::now();
-    let source = read_source(&args.exemplar, None, None)?;
+    let source = read_source(ui, &args.exemplar, None, None)?;
     let read_time = t.elapsed();
     let ctx = GpuContext::headless()?;
     // An exemplar the device cannot hold is refused before the analysis.

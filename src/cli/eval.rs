@@ -121,7 +121,7 @@ pub fn run(ui: &Ui, args: EvalArgs) -> CliResult<()> {
             args.exemplar.display()
         )));
     }
-    let exemplar = texsyn::image_io::load_exemplar(&args.exemplar)?;
+    let exemplar = ui.load_exemplar(&args.exemplar)?;
     if let Some(flow) = &args.flow {
         return temporal(ui, &args, &exemplar, &flow.load()?);
     }

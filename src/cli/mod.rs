@@ -257,6 +257,20 @@ impl Ui {
         }
     }
 
+    /// Loads an exemplar image, with a warning when it is an animation (only its first
+    /// frame is used).
+    pub fn load_exemplar(&self, path: &Path) -> texsyn::Result<texsyn::Exemplar> {
+        let ex = texsyn::image_io::load_exemplar(path)?;
+        if let Some(n @ 2..) = texsyn::image_io::animation_frames(path) {
+            self.info(format!(
+                "warning: {} is an animation of {n} frames; texsyn uses its first frame \
+                 (extract another frame to use it)",
+                path.display()
+            ));
+        }
+        Ok(ex)
+    }
+
     /// A result on stdout (never silenced); a closed stdout is an error, not a panic.
     pub fn out(&self, text: impl AsRef<str>) -> CliResult<()> {
         let mut stdout = std::io::stdout().lock();

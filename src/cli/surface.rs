@@ -254,7 +254,7 @@ pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
     mesh.validate_and_repair()?;
     let load_time = t.elapsed();
 
-    let mut source = read_source(&args.exemplar, None, args.tile.get())?;
+    let mut source = read_source(ui, &args.exemplar, None, args.tile.get())?;
     // Material maps, aligned with the exemplar: (normal?, image) in material order.
     let mut material_maps = Vec::new();
     for (path, normal) in [
@@ -263,7 +263,7 @@ pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
         (&args.occlusion_map, false),
     ] {
         material_maps.push(match path {
-            Some(p) => Some((texsyn::image_io::load_exemplar(p)?, normal, p.clone())),
+            Some(p) => Some((ui.load_exemplar(p)?, normal, p.clone())),
             None => None,
         });
     }

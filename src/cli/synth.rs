@@ -155,9 +155,7 @@ fn parse_also(s: &str) -> Result<AlsoMap, String> {
     } else {
         (None, false, s)
     };
-    let (input, output) = rest
-        .split_once('=')
-        .ok_or_else(|| format!("'{s}': expected IN=OUT, e.g. normal.png=out_normal.png"))?;
+    let (input, output) = split_in_out(rest).map_err(|why| format!("'{s}': {why}"))?;
     // `word:IN=OUT` with an unknown word is a typo of a kind, not a file name.
     if kind.is_none() {
         if let Some((prefix, _)) = input.split_once(':') {
@@ -189,6 +187,42 @@ fn parse_also(s: &str) -> Result<AlsoMap, String> {
     })
 }
 
+/// Splits `IN=OUT`. A name may contain `=`: with several, the split is the one whose
+/// `IN` is an existing file (it must be the only one).
+fn split_in_out(rest: &str) -> Result<(&str, &str), String> {
+    let splits: Vec<(&str, &str)> = rest
+        .match_indices('=')
+        .map(|(i, _)| (&rest[..i], &rest[i + 1..]))
+        .collect();
+    match splits[..] {
+        [] => Err("expected IN=OUT, e.g. normal.png=out_normal.png".into()),
+        [one] => Ok(one),
+        _ => {
+            let existing: Vec<_> = splits
+                .iter()
+                .filter(|(input, _)| !input.is_empty() && Path::new(input).is_file())
+                .collect();
+            match existing[..] {
+                [one] => Ok(*one),
+                [] => Err(format!(
+                    "{} '=' signs and no split whose IN is an existing file: check the input's \
+                     name",
+                    splits.len()
+                )),
+                _ => Err(format!(
+                    "ambiguous: {} are all existing files; rename the input or the output so \
+                     that only one '=' separates IN from OUT",
+                    existing
+                        .iter()
+                        .map(|(i, _)| format!("'{i}'"))
+                        .collect::<Vec<_>>()
+                        .join(" and ")
+                )),
+            }
+        }
+    }
+}
+
 /// What EXEMPLAR held: a finished analysis, or an image still to analyse.
 pub enum Source {
     Analysis(Analysis),
@@ -208,9 +242,14 @@ impl Source {
 
 /// Reads EXEMPLAR (an analysis file or an image, told apart by content) without
 /// analysing it yet; `--k` / `--tileable` must agree with an analysis file.
-pub fn read_source(path: &Path, k: Option<u32>, tileable: Option<bool>) -> CliResult<Source> {
+pub fn read_source(
+    ui: &Ui,
+    path: &Path,
+    k: Option<u32>,
+    tileable: Option<bool>,
+) -> CliResult<Source> {
     if !texsyn::session::is_analysis_file(path)? {
-        return Ok(Source::Image(texsyn::image_io::load_exemplar(path)?));
+        return Ok(Source::Image(ui.load_exemplar(path)?));
     }
     let analysis = Analysis::load(path)?;
     if let Some(k) = k.filter(|&k| k != analysis.k) {
@@ -330,7 +369,7 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
     // Read the input first (cheap), then check the size against the device, and only
     // then analyse (expensive).
     let t = Instant::now();
-    let mut source = read_source(&args.exemplar, args.k, args.tile.get())?;
+    let mut source = read_source(ui, &args.exemplar, args.k, args.tile.get())?;
     let read_time = t.elapsed();
     if let Source::Analysis(a) = &source {
         // The appearance space is fixed by the analysis: options that would change it
@@ -678,5 +717,43 @@ pub fn check_save_extension(path: &Path) -> CliResult<()> {
             ext.to_string_lossy(),
             texsyn::image_io::SUPPORTED_SAVE_EXTENSIONS
         )))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn also_names_with_equals_signs() {
+        let dir = std::env::temp_dir().join(format!("texsyn-also-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let file = |name: &str| {
+            let p = dir.join(name);
+            std::fs::write(&p, b"x").unwrap();
+            p.to_str().unwrap().to_string()
+        };
+        // One '=': split there, whether IN exists or not.
+        let a = parse_also("in.png=out.png").unwrap();
+        assert_eq!((a.input, a.output), ("in.png".into(), "out.png".into()));
+        // Several: the split whose IN is an existing file.
+        let eq_in = file("rough=0.5.png");
+        let a = parse_also(&format!("{eq_in}=out.png")).unwrap();
+        assert_eq!(
+            (a.input, a.output),
+            (eq_in.clone().into(), "out.png".into())
+        );
+        let a = parse_also(&format!("plain:{eq_in}=o=1.png")).unwrap();
+        assert_eq!((a.input, a.output), (eq_in.into(), "o=1.png".into()));
+        let plain_in = file("plain.png");
+        let a = parse_also(&format!("{plain_in}=o=2.png")).unwrap();
+        assert_eq!((a.input, a.output), (plain_in.into(), "o=2.png".into()));
+        // No existing split, or two: errors that say so.
+        let e = parse_also("missing=a=b.png").unwrap_err();
+        assert!(e.contains("no split whose IN is an existing file"), "{e}");
+        let (x, _) = (file("x"), file("x=y"));
+        let e = parse_also(&format!("{x}=y=z")).unwrap_err();
+        assert!(e.contains("ambiguous"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }
