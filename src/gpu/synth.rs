@@ -654,30 +654,15 @@ impl GpuSynthesizer {
         let Some(report) = hook.as_mut() else {
             return ctx.scoped(|| self.record(ctx, encoder, plan, schedule, target, false, maps));
         };
-        let levels = plan.levels.len() as u32;
-        let mut start = 0;
-        while start < schedule.len() {
-            let level = schedule[start].level;
-            let end = start
-                + schedule[start..]
-                    .iter()
-                    .take_while(|d| d.level == level)
-                    .count();
-            if end == schedule.len() {
-                return ctx.scoped(|| {
-                    self.record(ctx, encoder, plan, &schedule[start..], target, false, maps)
-                });
-            }
+        // Every level but the last is submitted and waited for here.
+        let levels: Vec<&[Dispatch]> = schedule.chunk_by(|a, b| a.level == b.level).collect();
+        let (last, earlier) = match levels.split_last() {
+            Some((last, earlier)) => (*last, earlier),
+            None => (&[][..], &[][..]),
+        };
+        for level in earlier {
             ctx.scoped(|| {
-                self.record(
-                    ctx,
-                    encoder,
-                    plan,
-                    &schedule[start..end],
-                    target,
-                    false,
-                    &[],
-                );
+                self.record(ctx, encoder, plan, level, target, false, &[]);
                 let done = std::mem::replace(
                     encoder,
                     ctx.device.create_command_encoder(&Default::default()),
@@ -685,11 +670,9 @@ impl GpuSynthesizer {
                 ctx.queue.submit([done.finish()]);
             })?;
             wait(ctx)?;
-            report(level as u32 + 1, levels);
-            start = end;
+            report(level[0].level as u32 + 1, plan.levels.len() as u32);
         }
-        // An empty schedule: only the map passes.
-        ctx.scoped(|| self.record(ctx, encoder, plan, &[], target, false, maps))
+        ctx.scoped(|| self.record(ctx, encoder, plan, last, target, false, maps))
     }
 
     /// Records the first `count` dispatches of the synthesis into `encoder`, writing
@@ -940,37 +923,42 @@ impl GpuSynthesizer {
         encoder: &mut wgpu::CommandEncoder,
         params: &SynthParams,
     ) -> Result<GpuSynthesis> {
-        let plan = SynthPlan::new(&self.analysis, params)?;
-        self.check_output(ctx, &plan)?;
-        let schedule = plan.schedule(&self.analysis);
-        ctx.scoped(|| {
-            let texture = self.output_texture(ctx, params.width, params.height);
-            let view = texture.create_view(&Default::default());
-            self.record(ctx, encoder, &plan, &schedule, &view, false, &[]);
-            GpuSynthesis {
-                texture,
-                width: params.width,
-                height: params.height,
-            }
-        })
+        self.encode_inner(ctx, encoder, params, false)
     }
 
-    /// Synthesizes and submits; returns when the GPU has finished.
-    pub fn synthesize(&self, ctx: &GpuContext, params: &SynthParams) -> Result<GpuSynthesis> {
+    /// [`Self::encode`]; with `submitting` (the caller submits right after), levels may
+    /// be submitted early for [`Self::set_progress`].
+    fn encode_inner(
+        &self,
+        ctx: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        params: &SynthParams,
+        submitting: bool,
+    ) -> Result<GpuSynthesis> {
         let plan = SynthPlan::new(&self.analysis, params)?;
         self.check_output(ctx, &plan)?;
         let schedule = plan.schedule(&self.analysis);
         let texture = ctx.scoped(|| self.output_texture(ctx, params.width, params.height))?;
         let view = texture.create_view(&Default::default());
-        let mut encoder = ctx.device.create_command_encoder(&Default::default());
-        self.record_reporting(ctx, &mut encoder, &plan, &schedule, &view, &[])?;
-        ctx.scoped(|| ctx.queue.submit([encoder.finish()]))?;
-        wait(ctx)?;
+        if submitting {
+            self.record_reporting(ctx, encoder, &plan, &schedule, &view, &[])?;
+        } else {
+            ctx.scoped(|| self.record(ctx, encoder, &plan, &schedule, &view, false, &[]))?;
+        }
         Ok(GpuSynthesis {
             texture,
             width: params.width,
             height: params.height,
         })
+    }
+
+    /// Synthesizes and submits; returns when the GPU has finished.
+    pub fn synthesize(&self, ctx: &GpuContext, params: &SynthParams) -> Result<GpuSynthesis> {
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        let out = self.encode_inner(ctx, &mut encoder, params, true)?;
+        ctx.scoped(|| ctx.queue.submit([encoder.finish()]))?;
+        wait(ctx)?;
+        Ok(out)
     }
 
     /// Synthesizes and reads colours and coordinates back to the host.
