@@ -116,19 +116,18 @@ fn advection_frames_gpu_match_cpu() {
         Flow::Uniform { vx: 1.3, vy: -0.7 },
     ];
     for (f, flow) in flows.iter().enumerate() {
+        // Both ways of scoring the similarity sets, in turn.
+        let o = AdvectOptions {
+            interpolate_sets: f % 2 == 1,
+            ..opts
+        };
+        adv.set_options(o).unwrap();
         let v = flow.sample(48, 40, f as f32).unwrap();
         adv.step(ctx(), &v, 1.5).unwrap();
         let q: Vec<[i32; 2]> = v.iter().map(|&v| quantize_velocity(v, 1.5)).collect();
         let out = run_cpu_frame(
             &a,
-            &plan.advect_schedule(
-                &a,
-                opts.levels,
-                opts.threshold,
-                opts.passes,
-                f as u64,
-                opts.nearest,
-            ),
+            &plan.advect_schedule(&a, &o, f as u64),
             &mut cpu,
             &jac,
             &[],
@@ -619,7 +618,7 @@ fn surface_advection_gpu_matches_cpu() {
     let q: Vec<[i32; 2]> = v.iter().map(|&p| quantize_velocity(p, 1.0)).collect();
     for f in 0..2u64 {
         adv.step(ctx(), &v, 1.0).unwrap();
-        let s = plan.advect_schedule(&a, o.levels, o.threshold, o.passes, f, o.nearest);
+        let s = plan.advect_schedule(&a, &o, f);
         run_cpu_frame(&a, &s, &mut cpu, &jac, &surface, &q);
         assert!(
             adv.read_coords(ctx()).unwrap() == cpu,

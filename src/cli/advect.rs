@@ -13,6 +13,7 @@ use texsyn::gpu::GpuContext;
 use texsyn::quality::FloatImage;
 use texsyn::{AnalysisOptions, SynthParams};
 
+use super::bench::print_pass_table;
 use super::field::{parse_field, FieldSpec, FIELD_HELP};
 use super::synth::{read_source, Source};
 use super::{fail, fmt_duration, parse_size, CliResult, TileArgs, Ui};
@@ -90,6 +91,16 @@ pub struct AdvectArgs {
     /// Compute texture energy every K frames (it is the costly figure; 0: first and last)
     #[arg(long, value_name = "K", default_value_t = 0)]
     pub energy_every: usize,
+
+    /// Score the finest level's similarity-set candidates bilinearly, as the coherent
+    /// ones, instead of at their nearest texel (slower, about the same figures)
+    #[arg(long)]
+    pub interpolate_sets: bool,
+
+    /// Also time every dispatch of each frame (each submitted on its own) and print a
+    /// table per level and pass: medians over the frames
+    #[arg(long)]
+    pub per_pass: bool,
 
     /// Advect over this mesh's atlas instead of an image (.gltf/.glb); frames are renders
     #[arg(long, value_name = "MESH")]
@@ -290,6 +301,7 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
         threshold: args.threshold,
         passes: args.passes,
         nearest: !args.bilinear,
+        interpolate_sets: args.interpolate_sets,
     };
     options.check()?;
     // A flow image must have the output's size (on a mesh it is refused by the atlas
@@ -363,14 +375,18 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
     }
     let (w, h) = (params.width, params.height);
 
-    // The cost of a whole synthesis of the same output, for comparison.
-    let mut full = Vec::new();
-    for _ in 0..3 {
+    // The cost of a whole synthesis of the same output, for comparison: a warm-up run
+    // (it builds the pipelines), then runs interleaved with the frames (one every
+    // FULL_EVERY frames, at least five in all), so that both medians see the same machine
+    // (a shared CPU's speed drifts by up to 2x between minutes).
+    const FULL_EVERY: u32 = 8;
+    let time_full = || -> CliResult<Duration> {
         let t = Instant::now();
         synthesizer.synthesize(&ctx, &params)?;
-        full.push(t.elapsed());
-    }
-    let full_time = median(&mut full);
+        Ok(t.elapsed())
+    };
+    time_full()?;
+    let mut full = vec![time_full()?];
 
     let mut adv = Advection::new(&ctx, synthesizer.clone(), &params, options)?;
     let velocity_at = |t: u32| -> CliResult<Vec<[f32; 2]>> {
@@ -389,6 +405,7 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
     };
     let mut figures = texsyn::quality::TemporalFigures::new(&exemplar_image, every);
     let mut costs = Vec::new();
+    let mut passes = Vec::new();
     // Frames written to the output (every --every-th), and their size (renders with
     // --mesh).
     let mut written = (0u32, [w, h]);
@@ -450,12 +467,23 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
     for t in 1..=args.frames {
         let v = velocity_at(t)?;
         let start = Instant::now();
-        adv.step(&ctx, &v, args.dt)?;
+        if args.per_pass {
+            passes.push(adv.profile_step(&ctx, &v, args.dt)?);
+        } else {
+            adv.step(&ctx, &v, args.dt)?;
+        }
         ctx.wait_idle()?;
         costs.push(start.elapsed());
         emit(&adv, t, &displacement(&v, args.dt), &mut figures)?;
+        if t % FULL_EVERY == 0 {
+            full.push(time_full()?);
+        }
         ui.progress(format!("frame {t}/{}", args.frames));
     }
+    while full.len() < 5 {
+        full.push(time_full()?);
+    }
+    let full_time = median(&mut full);
     ui.end_progress();
     match &sink {
         Sink::Gif(path, list) => write_gif(path, list)?,
@@ -475,11 +503,19 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
         written.1[1]
     ));
     ui.info(format!(
-        "cost per frame (GPU, synchronized, median): {} = {:.0}% of a whole synthesis ({})",
+        "cost per frame (GPU, synchronized, median{}): {} = {:.0}% of a whole synthesis ({})",
+        if args.per_pass {
+            ", one submission per dispatch"
+        } else {
+            ""
+        },
         fmt_duration(frame_time),
         100.0 * frame_time.as_secs_f64() / full_time.as_secs_f64(),
         fmt_duration(full_time)
     ));
+    if args.per_pass {
+        print_pass_table(ui, &passes, "per frame, one submission per dispatch")?;
+    }
     let warped = report.mean_warped_diff();
     ui.info(if warped.is_finite() {
         format!(

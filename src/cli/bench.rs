@@ -311,7 +311,16 @@ fn per_pass_table(
         }
     }
     ui.end_progress();
-    // Per (level, kind), in schedule order: the dispatch count and each run's total.
+    print_pass_table(ui, &runs, "one submission per dispatch")
+}
+
+/// Per (level, pass kind), in schedule order: the dispatches of one run and the median
+/// over the runs of their summed times, then the sum of the medians.
+pub fn print_pass_table(
+    ui: &Ui,
+    runs: &[Vec<(texsyn::passes::PassKind, usize, Duration)>],
+    note: &str,
+) -> CliResult<()> {
     let mut groups: Vec<((usize, texsyn::passes::PassKind), usize, Vec<Duration>)> = Vec::new();
     for (r, run) in runs.iter().enumerate() {
         for &(kind, level, t) in run {
@@ -343,7 +352,7 @@ fn per_pass_table(
         ))?;
     }
     ui.out(format!(
-        "  sum of medians (one submission per dispatch): {}",
+        "  sum of medians ({note}): {}",
         fmt_duration(total)
     ))?;
     Ok(())

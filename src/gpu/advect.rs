@@ -19,52 +19,10 @@ use super::shaders;
 use super::synth::{read_buffer, wait, GpuSynthesis, GpuSynthesizer};
 use crate::error::{Error, Result};
 use crate::field::Field;
+pub use crate::passes::advect::AdvectOptions;
 use crate::passes::advect::{MAX_SPEED, VELOCITY_FRAC};
-use crate::passes::plan::{Dispatch, SynthPlan};
+use crate::passes::plan::{Dispatch, PassKind, SynthPlan};
 use crate::passes::SynthParams;
-
-/// How an advection frame treats the pyramid.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct AdvectOptions {
-    /// Levels advected and corrected each frame (the finest ones); the coarser ones keep
-    /// the first frame's synthesis.
-    pub levels: usize,
-    /// Distortion threshold `c` on `|J_obs - J|_F` (Jacobian units): pixels beyond it
-    /// are upsampled again from the coarser level. A step off by a whole pixel on both
-    /// sides is a patch seam and does not count, so `c` of about 1 or more flags
-    /// almost nothing.
-    pub threshold: f32,
-    /// Correction passes per advected level and frame (the advected coordinates are
-    /// already nearly right: one pass keeps the cost at a fraction of a synthesis).
-    pub passes: u32,
-    /// Gather the exemplar texel nearest to each coordinate instead of interpolating.
-    /// Sub-pixel motion makes the coordinates fractional everywhere, so interpolating
-    /// blurs the whole texture (it does not accumulate, but it is visible). Measured
-    /// (gravel, 256x256, vortex, 300 frames), nearest vs bilinear: sharpness
-    /// (high-frequency energy / exemplar's) 1.19 vs 0.53, texture energy 0.0055 vs
-    /// 0.0043, flow-warped frame difference 0.058 vs 0.031. On by default: it looks
-    /// like the exemplar; bilinear looks soft.
-    pub nearest: bool,
-}
-
-impl AdvectOptions {
-    /// Checks the options (1-16 levels, a positive finite threshold, at most 16 passes);
-    /// [`Advection::new`] and [`Advection::set_options`] call it.
-    pub fn check(&self) -> Result<()> {
-        Advection::check_options(self)
-    }
-}
-
-impl Default for AdvectOptions {
-    fn default() -> Self {
-        Self {
-            levels: 3,
-            threshold: 0.5,
-            passes: 1,
-            nearest: true,
-        }
-    }
-}
 
 /// Host-side quantization of one velocity, as `shaders/velocity.wgsl` does on the GPU.
 pub fn quantize_velocity(v: [f32; 2], dt: f32) -> [i32; 2] {
@@ -102,7 +60,7 @@ impl Advection {
         options: AdvectOptions,
     ) -> Result<Self> {
         let params = Self::anisometric(params);
-        Self::check_options(&options)?;
+        options.check()?;
         let plan = SynthPlan::new(synthesizer.analysis(), &params)?;
         let n_coords = plan.coord_count + plan.flag_count();
         let pixels = params.width as u64 * params.height as u64;
@@ -307,22 +265,8 @@ impl Advection {
     }
 
     pub fn set_options(&mut self, options: AdvectOptions) -> Result<()> {
-        Self::check_options(&options)?;
+        options.check()?;
         self.options = options;
-        Ok(())
-    }
-
-    fn check_options(o: &AdvectOptions) -> Result<()> {
-        if !(1..=16).contains(&o.levels)
-            || !o.threshold.is_finite()
-            || o.threshold <= 0.0
-            || o.passes > 16
-        {
-            return Err(Error::InvalidParameter(format!(
-                "advection of {} levels, threshold {}, {} passes: use 1-16 levels, a positive threshold and at most 16 passes",
-                o.levels, o.threshold, o.passes
-            )));
-        }
         Ok(())
     }
 
@@ -339,6 +283,19 @@ impl Advection {
     /// time), submitted to the queue. Errors on a wrong count or a non-finite value.
     pub fn step(&mut self, ctx: &GpuContext, velocity: &[[f32; 2]], dt: f32) -> Result<()> {
         Self::check_dt(dt)?;
+        let q = self.quantized_velocity(velocity, dt)?;
+        ctx.scoped(|| {
+            ctx.queue
+                .write_buffer(&self.velocity, 0, bytemuck::cast_slice(&q))
+        })?;
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        self.record_frame(ctx, &mut encoder)?;
+        ctx.scoped(|| ctx.queue.submit([encoder.finish()]))?;
+        Ok(())
+    }
+
+    /// Host velocities checked (count, finite) and quantized for the velocity buffer.
+    fn quantized_velocity(&self, velocity: &[[f32; 2]], dt: f32) -> Result<Vec<[i32; 2]>> {
         let n = self.params.width as usize * self.params.height as usize;
         if velocity.len() != n {
             return Err(Error::InvalidParameter(format!(
@@ -359,15 +316,41 @@ impl Advection {
                 velocity[i]
             )));
         }
-        let q: Vec<[i32; 2]> = velocity.iter().map(|&v| quantize_velocity(v, dt)).collect();
+        Ok(velocity.iter().map(|&v| quantize_velocity(v, dt)).collect())
+    }
+
+    /// [`Self::step`] for profiling: each dispatch of the frame is submitted and waited
+    /// for on its own, and its time returned with its pass kind and level (the velocity
+    /// upload is not counted). The frame's result is the same; the sum is larger than a
+    /// frame's time, since nothing overlaps.
+    pub fn profile_step(
+        &mut self,
+        ctx: &GpuContext,
+        velocity: &[[f32; 2]],
+        dt: f32,
+    ) -> Result<Vec<(PassKind, usize, std::time::Duration)>> {
+        Self::check_dt(dt)?;
+        let q = self.quantized_velocity(velocity, dt)?;
         ctx.scoped(|| {
             ctx.queue
                 .write_buffer(&self.velocity, 0, bytemuck::cast_slice(&q))
         })?;
-        let mut encoder = ctx.device.create_command_encoder(&Default::default());
-        self.record_frame(ctx, &mut encoder)?;
-        ctx.scoped(|| ctx.queue.submit([encoder.finish()]))?;
-        Ok(())
+        wait(ctx)?;
+        let schedule =
+            self.plan
+                .advect_schedule(self.synthesizer.analysis(), &self.options, self.frame);
+        let mut out = Vec::with_capacity(schedule.len());
+        for d in &schedule {
+            let mut encoder = ctx.device.create_command_encoder(&Default::default());
+            self.record(ctx, &mut encoder, std::slice::from_ref(d), false)?;
+            let buffer = encoder.finish();
+            let t = std::time::Instant::now();
+            ctx.scoped(|| ctx.queue.submit([buffer]))?;
+            wait(ctx)?;
+            out.push((d.kind, d.level, t.elapsed()));
+        }
+        self.frame += 1;
+        Ok(out)
     }
 
     /// One frame from a velocity buffer the caller owns, recorded into the caller's
@@ -439,14 +422,9 @@ impl Advection {
     }
 
     fn record_frame(&mut self, ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder) -> Result<()> {
-        let schedule = self.plan.advect_schedule(
-            self.synthesizer.analysis(),
-            self.options.levels,
-            self.options.threshold,
-            self.options.passes,
-            self.frame,
-            self.options.nearest,
-        );
+        let schedule =
+            self.plan
+                .advect_schedule(self.synthesizer.analysis(), &self.options, self.frame);
         self.record(ctx, encoder, &schedule, false)?;
         self.frame += 1;
         Ok(())
