@@ -282,20 +282,17 @@ impl Advection {
     /// One frame from host velocities (one per output pixel, row-major, pixels per unit
     /// time), submitted to the queue. Errors on a wrong count or a non-finite value.
     pub fn step(&mut self, ctx: &GpuContext, velocity: &[[f32; 2]], dt: f32) -> Result<()> {
-        Self::check_dt(dt)?;
-        let q = self.quantized_velocity(velocity, dt)?;
-        ctx.scoped(|| {
-            ctx.queue
-                .write_buffer(&self.velocity, 0, bytemuck::cast_slice(&q))
-        })?;
+        self.upload_velocity(ctx, velocity, dt)?;
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
         self.record_frame(ctx, &mut encoder)?;
         ctx.scoped(|| ctx.queue.submit([encoder.finish()]))?;
         Ok(())
     }
 
-    /// Host velocities checked (count, finite) and quantized for the velocity buffer.
-    fn quantized_velocity(&self, velocity: &[[f32; 2]], dt: f32) -> Result<Vec<[i32; 2]>> {
+    /// Checks `dt` and the host velocities (count, finite), quantizes them and writes
+    /// them to the velocity buffer.
+    fn upload_velocity(&self, ctx: &GpuContext, velocity: &[[f32; 2]], dt: f32) -> Result<()> {
+        Self::check_dt(dt)?;
         let n = self.params.width as usize * self.params.height as usize;
         if velocity.len() != n {
             return Err(Error::InvalidParameter(format!(
@@ -316,7 +313,17 @@ impl Advection {
                 velocity[i]
             )));
         }
-        Ok(velocity.iter().map(|&v| quantize_velocity(v, dt)).collect())
+        let q: Vec<[i32; 2]> = velocity.iter().map(|&v| quantize_velocity(v, dt)).collect();
+        ctx.scoped(|| {
+            ctx.queue
+                .write_buffer(&self.velocity, 0, bytemuck::cast_slice(&q))
+        })
+    }
+
+    /// The dispatches of the next frame.
+    fn frame_schedule(&self) -> Vec<Dispatch> {
+        self.plan
+            .advect_schedule(self.synthesizer.analysis(), &self.options, self.frame)
     }
 
     /// [`Self::step`] for profiling: each dispatch of the frame is submitted and waited
@@ -329,16 +336,9 @@ impl Advection {
         velocity: &[[f32; 2]],
         dt: f32,
     ) -> Result<Vec<(PassKind, usize, std::time::Duration)>> {
-        Self::check_dt(dt)?;
-        let q = self.quantized_velocity(velocity, dt)?;
-        ctx.scoped(|| {
-            ctx.queue
-                .write_buffer(&self.velocity, 0, bytemuck::cast_slice(&q))
-        })?;
+        self.upload_velocity(ctx, velocity, dt)?;
         wait(ctx)?;
-        let schedule =
-            self.plan
-                .advect_schedule(self.synthesizer.analysis(), &self.options, self.frame);
+        let schedule = self.frame_schedule();
         let mut out = Vec::with_capacity(schedule.len());
         for d in &schedule {
             let mut encoder = ctx.device.create_command_encoder(&Default::default());
@@ -422,9 +422,7 @@ impl Advection {
     }
 
     fn record_frame(&mut self, ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder) -> Result<()> {
-        let schedule =
-            self.plan
-                .advect_schedule(self.synthesizer.analysis(), &self.options, self.frame);
+        let schedule = self.frame_schedule();
         self.record(ctx, encoder, &schedule, false)?;
         self.frame += 1;
         Ok(())

@@ -148,6 +148,69 @@ pub fn distortion_max(c: f32, h: i32) -> u32 {
     v.min(i32::MAX as f64) as u32
 }
 
+/// How an advection frame treats the pyramid.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AdvectOptions {
+    /// Levels advected and corrected each frame (the finest ones); the coarser ones keep
+    /// the first frame's synthesis.
+    pub levels: usize,
+    /// Distortion threshold `c` on `|J_obs - J|_F` (Jacobian units): pixels beyond it
+    /// are upsampled again from the coarser level. A step off by a whole pixel on both
+    /// sides is a patch seam and does not count, so `c` of about 1 or more flags
+    /// almost nothing.
+    pub threshold: f32,
+    /// Correction passes per advected level and frame (the advected coordinates are
+    /// already nearly right: one pass keeps the cost at a fraction of a synthesis).
+    pub passes: u32,
+    /// Gather the exemplar texel nearest to each coordinate instead of interpolating.
+    /// Sub-pixel motion makes the coordinates fractional everywhere, so interpolating
+    /// blurs the whole texture (it does not accumulate, but it is visible). Measured
+    /// (gravel, 256x256, vortex, 300 frames), nearest vs bilinear: sharpness
+    /// (high-frequency energy / exemplar's) 1.19 vs 0.53, texture energy 0.0055 vs
+    /// 0.0043, flow-warped frame difference 0.058 vs 0.031. On by default: it looks
+    /// like the exemplar; bilinear looks soft.
+    pub nearest: bool,
+    /// Score the similarity-set candidates of the finest level's correction at their
+    /// bilinearly interpolated position, as the coherent ones (4 reads each), instead of
+    /// at their nearest texel as synthesis does. Off by default: measured (256x256, vortex,
+    /// 300 frames, energy at frame 300, on against off) at about the same figures (gravel
+    /// 0.00572 against 0.00578; brick 0.00117 against 0.00131, but keeping less of its
+    /// mortar) for a fifth more time per frame at 512x512.
+    pub interpolate_sets: bool,
+}
+
+impl AdvectOptions {
+    /// Checks the options (1-16 levels, a positive finite threshold, at most 16 passes);
+    /// [`crate::gpu::advect::Advection::new`] and
+    /// [`crate::gpu::advect::Advection::set_options`] call it.
+    pub fn check(&self) -> Result<()> {
+        if !(1..=16).contains(&self.levels)
+            || !self.threshold.is_finite()
+            || self.threshold <= 0.0
+            || self.passes > 16
+        {
+            return Err(Error::InvalidParameter(format!(
+                "advection of {} levels, threshold {}, {} passes: use 1-16 levels, a positive \
+                 threshold and at most 16 passes",
+                self.levels, self.threshold, self.passes
+            )));
+        }
+        Ok(())
+    }
+}
+
+impl Default for AdvectOptions {
+    fn default() -> Self {
+        Self {
+            levels: 3,
+            threshold: 0.5,
+            passes: 1,
+            nearest: true,
+            interpolate_sets: false,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -269,68 +332,5 @@ mod tests {
         assert!(flags(&mut coords.clone(), 0.5).iter().all(|&f| f == 1));
         // Below the threshold (0.6 < 0.7): nothing.
         assert!(flags(&mut coords, 0.7).iter().all(|&f| f == 0));
-    }
-}
-
-/// How an advection frame treats the pyramid.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct AdvectOptions {
-    /// Levels advected and corrected each frame (the finest ones); the coarser ones keep
-    /// the first frame's synthesis.
-    pub levels: usize,
-    /// Distortion threshold `c` on `|J_obs - J|_F` (Jacobian units): pixels beyond it
-    /// are upsampled again from the coarser level. A step off by a whole pixel on both
-    /// sides is a patch seam and does not count, so `c` of about 1 or more flags
-    /// almost nothing.
-    pub threshold: f32,
-    /// Correction passes per advected level and frame (the advected coordinates are
-    /// already nearly right: one pass keeps the cost at a fraction of a synthesis).
-    pub passes: u32,
-    /// Gather the exemplar texel nearest to each coordinate instead of interpolating.
-    /// Sub-pixel motion makes the coordinates fractional everywhere, so interpolating
-    /// blurs the whole texture (it does not accumulate, but it is visible). Measured
-    /// (gravel, 256x256, vortex, 300 frames), nearest vs bilinear: sharpness
-    /// (high-frequency energy / exemplar's) 1.19 vs 0.53, texture energy 0.0055 vs
-    /// 0.0043, flow-warped frame difference 0.058 vs 0.031. On by default: it looks
-    /// like the exemplar; bilinear looks soft.
-    pub nearest: bool,
-    /// Score the similarity-set candidates of the finest level's correction at their
-    /// bilinearly interpolated position, as the coherent ones (4 reads each), instead of
-    /// at their nearest texel as synthesis does. Off by default: measured (256x256, vortex,
-    /// 300 frames) at about the same figures (gravel energy 0.00572 against 0.00578,
-    /// brick 0.00117 against 0.00131 with less of its mortar kept) for a fifth more time
-    /// per frame.
-    pub interpolate_sets: bool,
-}
-
-impl AdvectOptions {
-    /// Checks the options (1-16 levels, a positive finite threshold, at most 16 passes);
-    /// [`crate::gpu::advect::Advection::new`] and
-    /// [`crate::gpu::advect::Advection::set_options`] call it.
-    pub fn check(&self) -> Result<()> {
-        if !(1..=16).contains(&self.levels)
-            || !self.threshold.is_finite()
-            || self.threshold <= 0.0
-            || self.passes > 16
-        {
-            return Err(Error::InvalidParameter(format!(
-                "advection of {} levels, threshold {}, {} passes: use 1-16 levels, a positive \
-                 threshold and at most 16 passes",
-                self.levels, self.threshold, self.passes
-            )));
-        }
-        Ok(())
-    }
-}
-
-impl Default for AdvectOptions {
-    fn default() -> Self {
-        Self {
-            levels: 3,
-            threshold: 0.5,
-            passes: 1,
-            nearest: true,
-            interpolate_sets: false,
-        }
     }
 }
