@@ -1,8 +1,8 @@
 // Anisometric correction subpass (mirror: src/passes/correct_aniso.rs). Continuous
 // (fixed-point) coordinates, J(p) per pixel; neighbourhood predictions read Et and the
 // projected distance reads qe with integer bilinear weights (similarity-set candidates:
-// at the nearest texel); the full distance scores a candidate at its nearest exemplar
-// pixel.
+// at the nearest texel), at the position or (QUARTER) at its nearest quarter pixel; the
+// full distance scores a candidate at its nearest exemplar pixel.
 #include "shared/common.wgsl"
 #include "shared/aniso.wgsl"
 #include "shared/distance.wgsl"
@@ -32,6 +32,21 @@ fn qe_texel(c: vec2<i32>) -> Vec8 {
     return unpack_vec8(qe[params.et_base + ex_index(c)]);
 }
 
+// With FINE_TABLES, et and qe hold this level's tables at every quarter pixel
+// (QUARTER_BITS): one read where bilinear interpolation takes four.
+fn fine_index(s: vec2<i32>) -> u32 {
+    return u32(s.y * (params.ex_size.x << QUARTER_BITS) + s.x);
+}
+
+// A wrapped/clamped position as the tables are read: rounded to its quarter pixel with
+// QUARTER.
+fn table_position(c: vec2<i32>) -> vec2<i32> {
+    if (QUARTER) {
+        return quarter_texel(c) << vec2<u32>(COORD_FRAC - QUARTER_BITS);
+    }
+    return c;
+}
+
 // Bilinear blend of four texels with fractions f (weights in 1/65536, rounded).
 fn blend(e00: Vec8, e10: Vec8, e01: Vec8, e11: Vec8, f: vec2<i32>) -> Vec8 {
     let g = vec2<i32>(256) - f;
@@ -43,9 +58,14 @@ fn blend(e00: Vec8, e10: Vec8, e01: Vec8, e11: Vec8, f: vec2<i32>) -> Vec8 {
     );
 }
 
-// Et bilinearly interpolated at a fixed-point position (exact at whole pixels).
+// Et bilinearly interpolated at a fixed-point position (exact at whole pixels), or at
+// its quarter pixel.
 fn bilinear_et(u: vec2<i32>) -> Vec8 {
-    let t = bilinear_taps(read_coord_fx(u));
+    let c = table_position(read_coord_fx(u));
+    if (FINE_TABLES) {
+        return unpack_vec8(et[fine_index(c >> vec2<u32>(COORD_FRAC - QUARTER_BITS))]);
+    }
+    let t = bilinear_taps(c);
     let e00 = et_texel(t.i0);
     if (all(t.f == vec2<i32>(0))) {
         return e00;
@@ -55,7 +75,11 @@ fn bilinear_et(u: vec2<i32>) -> Vec8 {
 
 // The same for qe.
 fn bilinear_qe(u: vec2<i32>) -> Vec8 {
-    let t = bilinear_taps(read_coord_fx(u));
+    let c = table_position(read_coord_fx(u));
+    if (FINE_TABLES) {
+        return unpack_vec8(qe[fine_index(c >> vec2<u32>(COORD_FRAC - QUARTER_BITS))]);
+    }
+    let t = bilinear_taps(c);
     let e00 = qe_texel(t.i0);
     if (all(t.f == vec2<i32>(0))) {
         return e00;
@@ -65,7 +89,11 @@ fn bilinear_qe(u: vec2<i32>) -> Vec8 {
 
 // Projected distance against qe interpolated at candidate c.
 fn projected_distance_at(ns_lo: vec4<i32>, ns_hi: vec4<i32>, c: vec2<i32>) -> u32 {
-    let e = bilinear_qe(c);
+    return projected_distance_to(ns_lo, ns_hi, bilinear_qe(c));
+}
+
+// Projected distance against an exemplar side e.
+fn projected_distance_to(ns_lo: vec4<i32>, ns_hi: vec4<i32>, e: Vec8) -> u32 {
     let m = vec4<i32>(2 * QE_MAX);
     let a = vec4<u32>(clamp(ns_lo - e.lo, -m, m));
     let b = vec4<u32>(clamp(ns_hi - e.hi, -m, m));
@@ -107,11 +135,14 @@ fn prediction_sum(n: Neighbours, j: vec4<i32>, d: vec2<i32>) -> Vec8 {
 }
 
 // What a prediction reads, as a key that equal reads share: the nearest texel with the
-// full distance, the fixed-point position otherwise (FULL_DISTANCE is a pipeline
-// constant, so each pipeline keeps one branch).
+// full distance, the quarter pixel with QUARTER, the fixed-point position otherwise
+// (pipeline constants, so each pipeline keeps one branch).
 fn prediction_key(u: vec2<i32>) -> vec2<i32> {
     if (FULL_DISTANCE) {
         return nearest_texel(read_coord_fx(u));
+    }
+    if (QUARTER) {
+        return table_position(read_coord_fx(u));
     }
     return u;
 }
@@ -199,7 +230,12 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
                 } else {
                     // Similarity-set candidates at their nearest texel (see the mirror).
                     if (i > 0 && !KSET_INTERP) {
-                        dist = projected_distance(ns_lo, ns_hi, nearest_texel(c));
+                        let t = nearest_texel(c);
+                        if (FINE_TABLES) {
+                            dist = projected_distance_to(ns_lo, ns_hi, unpack_vec8(qe[fine_index(t << vec2<u32>(QUARTER_BITS))]));
+                        } else {
+                            dist = projected_distance(ns_lo, ns_hi, t);
+                        }
                     } else {
                         dist = projected_distance_at(ns_lo, ns_hi, c);
                     }

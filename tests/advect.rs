@@ -114,14 +114,31 @@ fn advection_frames_gpu_match_cpu() {
             strength: 2.5,
         },
         Flow::Uniform { vx: 1.3, vy: -0.7 },
+        Flow::Vortex {
+            cx: 0.6,
+            cy: 0.4,
+            omega: -0.04,
+        },
     ];
     for (f, flow) in flows.iter().enumerate() {
-        // Both ways of scoring the similarity sets, in turn.
+        // Both ways of scoring the similarity sets, in turn; quarter-pixel reads (from
+        // the finest level's supersampled tables) but in frame 3; in frame 4 the
+        // projected distance at every level, so that the coarser advected levels read
+        // quarter pixels without tables (interpolating in the shader).
         let o = AdvectOptions {
             interpolate_sets: f % 2 == 1,
+            quarter_reads: f != 2,
             ..opts
         };
         adv.set_options(o).unwrap();
+        if f == 3 {
+            adv.set_params(&SynthParams {
+                distance: texsyn::DistanceMode::Projected,
+                ..params.clone()
+            })
+            .unwrap();
+        }
+        let plan = adv.plan().clone();
         let v = flow.sample(48, 40, f as f32).unwrap();
         adv.step(ctx(), &v, 1.5).unwrap();
         let q: Vec<[i32; 2]> = v.iter().map(|&v| quantize_velocity(v, 1.5)).collect();

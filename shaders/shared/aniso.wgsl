@@ -64,6 +64,21 @@ fn nearest_texel(c: vec2<i32>) -> vec2<i32> {
     return min(r, params.ex_size - vec2<i32>(1));
 }
 
+// Quarter pixels per pixel, as a shift, of the supersampled tables (params.quarter).
+const QUARTER_BITS: u32 = 2u;
+
+// The quarter pixel nearest to a wrapped/clamped position, in quarter pixels (wrapped
+// for tileable exemplars; a clamped position stays within the last pixel).
+fn quarter_texel(c: vec2<i32>) -> vec2<i32> {
+    let sh = COORD_FRAC - QUARTER_BITS;
+    let r = (c + vec2<i32>(1 << (sh - 1u))) >> vec2<u32>(sh);
+    if (TILEABLE) {
+        let n = params.ex_size << vec2<u32>(QUARTER_BITS);
+        return select(r, r - n, r >= n);
+    }
+    return r;
+}
+
 // Bilinear taps of a wrapped/clamped position: the two texel corners and the fractions
 // (0..255). Returned by value: CPU drivers put locals written through pointers into
 // scratch memory, which they allocate and clear on every dispatch.

@@ -55,7 +55,7 @@ struct Params {
     seam_blend: u32,
     inset: i32,
     kset_interp: u32,
-    _pad10: u32,
+    quarter: u32,
     _pad11: u32,
     _pad12: u32,
 }
@@ -81,6 +81,12 @@ override FULL_DISTANCE: bool = false;
 override KSET_INTERP: bool = false;
 override MASKED: bool = false;
 override PERIODIC: bool = false;
+// params.quarter (see correct_aniso.wgsl).
+override QUARTER: bool = false;
+// GPU only (no PassParams field): the et and qe bindings hold this level's 16x
+// supersampled tables (quarter pixels, crate::gpu::synth::FineTables) instead of every
+// level's tables. Set only with QUARTER, for the level the tables were built for.
+override FINE_TABLES: bool = false;
 // params.k: the similarity-set size (1..=8), so that the candidate loop unrolls.
 override K: i32 = 2;
 // Synthesized exemplar coordinates of every level's region, concatenated.

@@ -97,6 +97,12 @@ pub struct AdvectArgs {
     #[arg(long)]
     pub interpolate_sets: bool,
 
+    /// Read the finest level's exemplar tables at each position exactly (bilinear at
+    /// 1/256 pixel) instead of at its nearest quarter pixel from supersampled tables
+    /// (slower, about the same figures)
+    #[arg(long)]
+    pub exact_reads: bool,
+
     /// Also time every dispatch of each frame (each submitted on its own) and print a
     /// table per level and pass: medians over the frames
     #[arg(long)]
@@ -302,6 +308,7 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
         passes: args.passes,
         nearest: !args.bilinear,
         interpolate_sets: args.interpolate_sets,
+        quarter_reads: !args.exact_reads,
     };
     options.check()?;
     // A flow image must have the output's size (on a mesh it is refused by the atlas

@@ -171,12 +171,64 @@ pub struct GpuSynthesizer {
     proj: wgpu::Buffer,
     colors: wgpu::Buffer,
     scratch: Mutex<Option<Scratch>>,
+    /// The finest level's quarter-pixel tables, built on first use (`None` if they do
+    /// not fit the device's buffer limits: the shader then interpolates, same numbers).
+    fine: std::sync::OnceLock<Option<FineTables>>,
     /// The last rasterized Jacobian field and the regions it covers: a frame loop that
     /// keeps its field and window reuses it instead of rasterizing again.
     /// With the surface buffer of atlas synthesis (a placeholder otherwise).
     jacobians: Mutex<Option<(JacobianKey, wgpu::Buffer, wgpu::Buffer)>>,
     /// [`Self::set_progress`]'s callback: (levels done, levels in all).
     progress: Mutex<Option<LevelProgress>>,
+}
+
+/// The finest analysis level's `Et` and `qe` interpolated at every quarter pixel
+/// ([`crate::passes::correct_aniso::quarter_table`]), bound in place of the whole tables
+/// for the corrections that read quarter pixels (`PassParams::quarter`): one read of 16
+/// bytes where bilinear interpolation reads four. 16 times the level's tables (8 MiB
+/// for a 128x128 exemplar), built and uploaded on first use only.
+struct FineTables {
+    /// `et_base` of the level they were built for.
+    et_base: u32,
+    et: wgpu::Buffer,
+    qe: wgpu::Buffer,
+}
+
+impl FineTables {
+    /// Builds the tables for the finest level, or `None` if a table exceeds the
+    /// device's buffer limits. `p`: the parameters of a correction at that level.
+    fn build(ctx: &GpuContext, a: &Analysis, p: &PassParams) -> Option<Self> {
+        let level = a.levels.last()?;
+        let px = a.width as u64 * a.height as u64;
+        let bytes = px << (2 * crate::passes::common::QUARTER_BITS) << 4;
+        let limits = ctx.limits();
+        if bytes
+            > limits
+                .max_storage_buffer_binding_size
+                .min(limits.max_buffer_size)
+        {
+            return None;
+        }
+        let p = PassParams { quarter: 1, ..*p };
+        let (et, qe) = std::thread::scope(|s| {
+            let et = s.spawn(|| crate::passes::correct_aniso::quarter_table(&p, &level.et));
+            let qe = crate::passes::correct_aniso::quarter_table(&p, &level.qe);
+            (et.join().expect("quarter table thread"), qe)
+        });
+        let init = |label: &str, t: &[[i16; DIM]]| {
+            ctx.device
+                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some(label),
+                    contents: bytemuck::cast_slice(t),
+                    usage: wgpu::BufferUsages::STORAGE,
+                })
+        };
+        Some(Self {
+            et_base: p.et_base,
+            et: init("texsyn fine et", &et),
+            qe: init("texsyn fine qe", &qe),
+        })
+    }
 }
 
 /// A callback told `(levels done, levels in all)` during a synthesis.
@@ -192,24 +244,30 @@ type JacobianKey = (
 
 /// The switches compiled into a pass pipeline as WGSL overrides (`shaders/shared/
 /// common.wgsl`): a pipeline per combination in use, so that CPU drivers do not run the
-/// branches a dispatch never takes. Bits 0-4: the flags of [`Self::FLAGS`]; bits 5-7:
+/// branches a dispatch never takes. Bits 0-6: the flags of [`Self::FLAGS`]; bits 7-9:
 /// the similarity-set size k - 1.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) struct Variant(u8);
+pub(crate) struct Variant(u16);
 
 impl Variant {
-    const FLAGS: [&'static str; 5] = [
+    const FLAGS: [&'static str; 7] = [
         "TILEABLE",
         "FULL_DISTANCE",
         "KSET_INTERP",
         "MASKED",
         "PERIODIC",
+        "QUARTER",
+        "FINE_TABLES",
     ];
-    const COUNT: usize = 256;
-    /// The bits only the correction passes read: FULL_DISTANCE, KSET_INTERP and k.
-    const CORRECTION_ONLY: u8 = 0b1110_0110;
+    const K_SHIFT: u32 = 7;
+    const COUNT: usize = 1 << 10;
+    /// The bits only the correction passes read: FULL_DISTANCE, KSET_INTERP, QUARTER,
+    /// FINE_TABLES and k.
+    const CORRECTION_ONLY: u16 = 0b11_1110_0110;
+    const FINE_TABLES: u16 = 1 << 6;
 
-    /// The switches of a dispatch, from the parameters the CPU mirror reads.
+    /// The switches of a dispatch, from the parameters the CPU mirror reads
+    /// (FINE_TABLES off: see [`Self::with_fine_tables`]).
     pub(crate) fn of(p: &PassParams) -> Self {
         let flags = [
             p.tileable != 0,
@@ -217,14 +275,20 @@ impl Variant {
             p.kset_interp != 0,
             p.masked != 0,
             p.periodic != 0,
+            p.quarter != 0,
         ];
-        let k = (p.k.clamp(1, crate::analysis::MAX_K as i32) - 1) as u8;
+        let k = (p.k.clamp(1, crate::analysis::MAX_K as i32) - 1) as u16;
         Self(
             flags
                 .iter()
                 .enumerate()
-                .fold(k << 5, |v, (i, &b)| v | (u8::from(b) << i)),
+                .fold(k << Self::K_SHIFT, |v, (i, &b)| v | (u16::from(b) << i)),
         )
+    }
+
+    /// The same, reading the level's quarter-pixel tables ([`FineTables`]).
+    fn with_fine_tables(self) -> Self {
+        Self(self.0 | Self::FINE_TABLES)
     }
 
     /// The switches only the correction passes read are reset for the others, so they
@@ -243,7 +307,7 @@ impl Variant {
             .enumerate()
             .map(|(i, &name)| (name, f64::from((self.0 >> i) & 1)))
             .collect();
-        c.push(("K", f64::from((self.0 >> 5) + 1)));
+        c.push(("K", f64::from((self.0 >> Self::K_SHIFT) + 1)));
         c
     }
 }
@@ -542,6 +606,7 @@ impl GpuSynthesizer {
                 colors,
                 analysis: analysis.clone(),
                 scratch: Mutex::new(None),
+                fine: std::sync::OnceLock::new(),
                 jacobians: Mutex::new(None),
                 progress: Mutex::new(None),
             }
@@ -775,74 +840,107 @@ impl GpuSynthesizer {
                 contents: &bytes,
                 usage: wgpu::BufferUsages::UNIFORM,
             });
-        let make_bind_group = |colors: &wgpu::Buffer, target: &wgpu::TextureView| {
-            ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("texsyn passes"),
-                layout: &self.pipelines.layout,
-                entries: &[
-                    wgpu::BindGroupEntry {
-                        binding: 0,
-                        resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                            buffer: &params,
-                            offset: 0,
-                            size: wgpu::BufferSize::new(std::mem::size_of::<PassParams>() as u64),
-                        }),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 1,
-                        resource: coords_buffer.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 2,
-                        resource: self.et.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 3,
-                        resource: self.qe.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 4,
-                        resource: self.offsets.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 5,
-                        resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                            buffer: &self.proj,
-                            offset: 0,
-                            size: wgpu::BufferSize::new(PROJ_BYTES),
-                        }),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 6,
-                        resource: colors.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 7,
-                        resource: wgpu::BindingResource::TextureView(target),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 8,
-                        resource: jac.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 9,
-                        resource: surface.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 10,
-                        resource: velocity_buffer.as_entire_binding(),
-                    },
-                ],
-            })
+        // Corrections that read quarter pixels at the finest level read them from its
+        // supersampled tables when those fit (a second bind group: the tables replace
+        // `et` and `qe`, so no binding is added to the layout).
+        let finest_base = {
+            let a = &*self.analysis;
+            (a.levels.len().saturating_sub(1) as u64 * a.width as u64 * a.height as u64) as u32
         };
-        let bind_group = make_bind_group(&self.colors, target);
+        let fine_dispatch = |d: &Dispatch| {
+            d.kind == PassKind::CorrectAniso
+                && d.params.quarter != 0
+                && d.params.full_distance == 0
+                && d.params.et_base == finest_base
+        };
+        let fine = schedule.iter().find(|d| fine_dispatch(d)).and_then(|d| {
+            self.fine
+                .get_or_init(|| FineTables::build(ctx, &self.analysis, &d.params))
+                .as_ref()
+        });
+        let make_bind_group =
+            |colors: &wgpu::Buffer,
+             target: &wgpu::TextureView,
+             (et, qe): (&wgpu::Buffer, &wgpu::Buffer)| {
+                ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("texsyn passes"),
+                    layout: &self.pipelines.layout,
+                    entries: &[
+                        wgpu::BindGroupEntry {
+                            binding: 0,
+                            resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                                buffer: &params,
+                                offset: 0,
+                                size: wgpu::BufferSize::new(
+                                    std::mem::size_of::<PassParams>() as u64
+                                ),
+                            }),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 1,
+                            resource: coords_buffer.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 2,
+                            resource: et.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 3,
+                            resource: qe.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 4,
+                            resource: self.offsets.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 5,
+                            resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                                buffer: &self.proj,
+                                offset: 0,
+                                size: wgpu::BufferSize::new(PROJ_BYTES),
+                            }),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 6,
+                            resource: colors.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 7,
+                            resource: wgpu::BindingResource::TextureView(target),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 8,
+                            resource: jac.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 9,
+                            resource: surface.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 10,
+                            resource: velocity_buffer.as_entire_binding(),
+                        },
+                    ],
+                })
+            };
+        let tables = (&self.et, &self.qe);
+        let bind_group = make_bind_group(&self.colors, target, tables);
+        let fine_group = fine.map(|f| (f, make_bind_group(&self.colors, target, (&f.et, &f.qe))));
         {
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("texsyn synthesis"),
                 timestamp_writes: None,
             });
             for (i, d) in schedule.iter().enumerate() {
-                let pipeline = self.pipelines.get(ctx, d.kind, Variant::of(&d.params));
+                let mut variant = Variant::of(&d.params);
+                let mut group = &bind_group;
+                if let Some((f, g)) = &fine_group {
+                    if fine_dispatch(d) && f.et_base == d.params.et_base {
+                        variant = variant.with_fine_tables();
+                        group = g;
+                    }
+                }
+                let pipeline = self.pipelines.get(ctx, d.kind, variant);
                 let [tx, ty] = d.threads();
                 if tx == 0 || ty == 0 {
                     continue;
@@ -850,7 +948,7 @@ impl GpuSynthesizer {
                 pass.set_pipeline(pipeline);
                 pass.set_bind_group(
                     0,
-                    &bind_group,
+                    group,
                     &[
                         (i as u64 * PARAMS_STRIDE) as u32,
                         d.level as u32 * PROJ_BYTES as u32,
@@ -859,7 +957,7 @@ impl GpuSynthesizer {
                 pass.dispatch_workgroups(tx.div_ceil(8), ty.div_ceil(8), 1);
             }
             for (m, map) in maps.iter().enumerate() {
-                let group = make_bind_group(map.colors, map.view);
+                let group = make_bind_group(map.colors, map.view, tables);
                 let level = plan.levels.len() - 1;
                 let variant = Variant::of(&gather_params).for_kind(PassKind::Gather);
                 pass.set_pipeline(if map.magnify > 1 {

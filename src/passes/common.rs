@@ -98,7 +98,13 @@ pub struct PassParams {
     /// candidates with `qe` interpolated like the coherent ones (advection frames), 0 at
     /// their nearest texel (synthesis; see `correct_aniso.rs`).
     pub kset_interp: u32,
-    pub _pad: [u32; 3],
+    /// Anisometric correction, projected distance: 1 reads `Et` and `qe` at the quarter
+    /// pixel nearest to each position (then bilinearly, as at any position), 0 at the
+    /// position itself (1/256 pixel). The GPU reads the quarter pixels of the finest
+    /// level from 16x supersampled tables, one read instead of four (advection frames;
+    /// see `correct_aniso.rs`).
+    pub quarter: u32,
+    pub _pad: [u32; 2],
 }
 
 /// Dynamic uniform offsets must be multiples of this (the WebGPU default limit).
@@ -304,6 +310,30 @@ pub fn read_coord_fx(c: [i32; 2], p: &PassParams) -> [i32; 2] {
             c[0].clamp(0, n[0] - (1 << COORD_FRAC)),
             c[1].clamp(0, n[1] - (1 << COORD_FRAC)),
         ]
+    }
+}
+
+/// Quarter pixels per pixel, as a shift (`PassParams::quarter`).
+pub const QUARTER_BITS: u32 = 2;
+
+/// The quarter pixel nearest to a wrapped/clamped position ([`read_coord_fx`]), in
+/// quarter pixels: wrapped for tileable exemplars; a clamped position stays within the
+/// last pixel.
+#[inline]
+pub fn quarter_texel(c: [i32; 2], p: &PassParams) -> [i32; 2] {
+    let sh = COORD_FRAC - QUARTER_BITS;
+    let r = [
+        (c[0] + (1 << (sh - 1))) >> sh,
+        (c[1] + (1 << (sh - 1))) >> sh,
+    ];
+    if p.tileable != 0 {
+        let n = [p.ex_size[0] << QUARTER_BITS, p.ex_size[1] << QUARTER_BITS];
+        [
+            if r[0] >= n[0] { r[0] - n[0] } else { r[0] },
+            if r[1] >= n[1] { r[1] - n[1] } else { r[1] },
+        ]
+    } else {
+        r
     }
 }
 

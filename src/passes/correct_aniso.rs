@@ -20,10 +20,17 @@
 //! their scale) reads `Et` at the four diagonals of the candidate's nearest pixel. Same tie rule and
 //! coherence bias as the isometric pass. With `J = I` every coordinate stays a multiple
 //! of 256 and the result is the isometric pass's times 256 (tested).
+//!
+//! `p.quarter` (advection frames) rounds every interpolated read to its nearest quarter
+//! pixel, so the GPU can read the finest level's `Et` and `qe` from tables supersampled
+//! at quarter pixels ([`quarter_table`]): one read instead of four, about half the
+//! finest level's correction time on lavapipe. Advection measured the same figures with
+//! it; a synthesis along a swirl lost 2-3 points of Jacobian fidelity, so synthesis keeps
+//! the exact positions.
 
 use super::common::{
-    bilinear_taps, fit_coord, is_valid_fx, nearest_texel, phi_inv, read_coord_fx, region_index,
-    scaled_jd, PassParams, COORD_FRAC,
+    bilinear_taps, fit_coord, is_valid_fx, nearest_texel, phi_inv, quarter_texel, read_coord_fx,
+    region_index, scaled_jd, PassParams, COORD_FRAC, QUARTER_BITS,
 };
 use super::correct::{full_distance, project, LevelTables};
 use crate::analysis::QE_MAX;
@@ -40,9 +47,41 @@ pub fn et_bilinear(p: &PassParams, t: &LevelTables, u: [i32; 2]) -> [i32; DIM] {
 }
 
 /// A per-pixel 8D table (`Et` or `qe`) bilinearly interpolated at a fixed-point
-/// position (weights in 1/65536, rounded; exact at whole pixels).
+/// position (weights in 1/65536, rounded; exact at whole pixels), or with
+/// `p.quarter` at the quarter pixel nearest to it.
 pub fn table_bilinear(p: &PassParams, table: &[[i16; DIM]], u: [i32; 2]) -> [i32; DIM] {
-    let (i0, i1, f) = bilinear_taps(read_coord_fx(u, p), p);
+    let c = read_coord_fx(u, p);
+    if p.quarter != 0 {
+        let s = quarter_texel(c, p);
+        return bilinear_at(p, table, [s[0] << QUARTER_SHIFT, s[1] << QUARTER_SHIFT]);
+    }
+    bilinear_at(p, table, c)
+}
+
+/// Fixed-point units per quarter pixel (as a shift).
+const QUARTER_SHIFT: u32 = COORD_FRAC - QUARTER_BITS;
+
+/// A table interpolated at every quarter pixel of the exemplar (`4 w x 4 h` entries,
+/// row-major): what [`table_bilinear`] returns with `p.quarter`, so that the GPU reads
+/// one entry where interpolation reads four (`crate::gpu::synth`'s fine tables; the
+/// same numbers either way). Entries past the last pixel of a non-tileable exemplar
+/// are never read; they repeat the edge.
+pub fn quarter_table(p: &PassParams, table: &[[i16; DIM]]) -> Vec<[i16; DIM]> {
+    let (w, h) = (p.ex_size[0] << QUARTER_BITS, p.ex_size[1] << QUARTER_BITS);
+    let mut out = Vec::with_capacity((w * h) as usize);
+    for y in 0..h {
+        for x in 0..w {
+            let c = read_coord_fx([x << QUARTER_SHIFT, y << QUARTER_SHIFT], p);
+            // A convex combination rounded: within the i16 range of its texels.
+            out.push(bilinear_at(p, table, c).map(|v| v as i16));
+        }
+    }
+    out
+}
+
+/// [`table_bilinear`] at a wrapped/clamped position.
+fn bilinear_at(p: &PassParams, table: &[[i16; DIM]], c: [i32; 2]) -> [i32; DIM] {
+    let (i0, i1, f) = bilinear_taps(c, p);
     let e00 = table[ex_index(i0, p)];
     if f == [0, 0] {
         return e00.map(|v| v as i32);
@@ -192,5 +231,44 @@ pub fn run(
         }
         let c = correct_pixel(p, t, coords, jac, [x, y]);
         coords[p.coord_base as usize + (y * p.size[0] + x) as usize] = c;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The quarter-pixel table holds exactly what the quarter-pixel reads interpolate,
+    /// for tileable (wrapping past the last pixel) and clamped exemplars.
+    #[test]
+    fn quarter_table_matches_quarter_reads() {
+        let (w, h) = (5, 3);
+        let table: Vec<[i16; DIM]> = (0..w * h)
+            .map(|i| std::array::from_fn(|c| ((i * 7919 + c * 104_729) % 65_536) as i16))
+            .collect();
+        for tileable in [0, 1] {
+            let p = PassParams {
+                ex_size: [w as i32, h as i32],
+                tileable,
+                quarter: 1,
+                ..Default::default()
+            };
+            let q = quarter_table(&p, &table);
+            assert_eq!(q.len(), w * h * 16);
+            for y in -300..(h as i32 * 256 + 300) {
+                for x in (-300..(w as i32 * 256 + 300)).step_by(7) {
+                    let u = [x, y];
+                    let s = quarter_texel(read_coord_fx(u, &p), &p);
+                    let i = (s[1] * (w as i32 * 4) + s[0]) as usize;
+                    assert_eq!(table_bilinear(&p, &table, u), q[i].map(i32::from), "{u:?}");
+                }
+            }
+            // Exact at whole pixels, as the nearest-texel reads of the similarity sets.
+            for y in 0..h {
+                for x in 0..w {
+                    assert_eq!(q[(4 * y) * 4 * w + 4 * x], table[y * w + x]);
+                }
+            }
+        }
     }
 }

@@ -424,7 +424,8 @@ impl SynthPlan {
             seam_blend: self.params.seam_blend as u32,
             inset: 0,
             kset_interp: 0,
-            _pad: [0; 3],
+            quarter: 0,
+            _pad: [0; 2],
         }
     }
 }
@@ -624,6 +625,7 @@ impl SynthPlan {
                         if keep_fill {
                             let mut d = *d;
                             d.params.kset_interp = options.interpolate_sets as u32;
+                            d.params.quarter = options.quarter_reads as u32;
                             out.push(d);
                         }
                     }
