@@ -1,6 +1,7 @@
 // Advection of a level's coordinates (mirror: src/passes/advect.rs), without
-// resampling: S[p] = S'[p - k] - J(p) (V(p) - k), where S' is the previous frame (copied
-// to the scratch region), V the velocity in output pixels per frame (1/1024) and k the
+// resampling: S[p] = S'[p - k] - J(p) (V(p) - k), where S' is the previous frame (the
+// level's coordinates; the result goes to the scratch region, which the distortion pass
+// then copies back), V the velocity in output pixels per frame (1/1024) and k the
 // velocity at the window's centre rounded to whole pixels of this level, the same for
 // every pixel. The texture moves with the flow, colour(p, t) = colour(p - V, t - 1):
 // the common drift by moving whole coordinates (patch seams included, so a uniform flow
@@ -35,11 +36,11 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     // largest speeds): keeps J V within i32.
     let v = clamp(vq - k * unit, vec2<i32>(-(128 << 10u)), vec2<i32>(128 << 10u));
     let src = clamp(q - k, vec2<i32>(0), params.size - vec2<i32>(1));
-    let prev = coords[params.flag_base + u32(src.y * params.size.x + src.x)];
+    let prev = coords[params.coord_base + u32(src.y * params.size.x + src.x)];
     let j = jac[i];
     // J V in 1/2^20 exemplar pixel to 1/256, rounded with this frame's offset (a
     // low-discrepancy sequence: the rounding errors of a pixel do not add up over frames).
     let jv = vec2<i32>(j.x * v.x + j.y * v.y, j.z * v.x + j.w * v.y);
     let o = (jv + vec2<i32>(i32(params.dither))) >> vec2<u32>(12u);
-    coords[i] = fit_coord(prev - o);
+    coords[params.flag_base + u32(q.y * params.size.x + q.x)] = fit_coord(prev - o);
 }

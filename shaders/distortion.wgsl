@@ -7,7 +7,8 @@
 // while re-upsampling such strips every frame broke them apart (measured: brick under a
 // uniform sub-pixel flow, energy 2.6x after 60 frames, now 0.6x). A pixel is flagged
 // when |J_obs - J|_F > c, i.e. the squared errors exceed params.distortion_max =
-// (c h 256)^2. Flags go to coords[flag_base + t].x.
+// (c h 256)^2. Reads the advected coordinates from the scratch region (flag_base) and
+// writes them back to the level, flagged pixels as FLAGGED for the upsample pass.
 #include "shared/common.wgsl"
 #include "shared/aniso.wgsl"
 
@@ -24,9 +25,14 @@ fn step_err(d: vec2<i32>) -> u32 {
     return c.x * c.x + c.y * c.y;
 }
 
+// The advected coordinate of region pixel q (clamped), in the scratch region.
+fn advected(q: vec2<i32>) -> vec2<i32> {
+    return coords[params.flag_base + region_index(q) - params.coord_base];
+}
+
 fn axis_err(q: vec2<i32>, s: vec2<i32>, e: vec2<i32>, expected: vec2<i32>) -> u32 {
-    let fwd = coords[region_index(q + e)] - s - expected;
-    let bwd = s - coords[region_index(q - e)] - expected;
+    let fwd = advected(q + e) - s - expected;
+    let bwd = s - advected(q - e) - expected;
     let err = min(step_err(fwd), step_err(bwd));
     // (h 256)^2, a whole pixel step (h capped: step_err is below 2^30 anyway).
     let hc = min(params.spacing, 128);
@@ -43,14 +49,14 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let t = u32(q.y * params.size.x + q.x);
     let i = params.coord_base + t;
-    var flag = 0;
+    let s = coords[params.flag_base + t];
+    var flag = false;
     if (in_chart(t)) {
-        let s = coords[i];
         let j = jac[i];
         let h = params.spacing;
         let ex = axis_err(q, s, vec2<i32>(1, 0), scaled_jd(h, j, vec2<i32>(1, 0)));
         let ey = axis_err(q, s, vec2<i32>(0, 1), scaled_jd(h, j, vec2<i32>(0, 1)));
-        flag = select(0, 1, ex + ey > params.distortion_max);
+        flag = ex + ey > params.distortion_max;
     }
-    coords[params.flag_base + t] = vec2<i32>(flag, 0);
+    coords[i] = select(s, vec2<i32>(FLAGGED), flag);
 }

@@ -15,7 +15,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let t = u32(q.y * params.size.x + q.x);
     let i = params.coord_base + t;
     // Advection: only the pixels the distortion pass flagged are upsampled again.
-    if ((params.flag_base | u32(opaque)) != 0u && coords[params.flag_base + t].x == 0) {
+    if ((params.flag_base | u32(opaque)) != 0u && coords[i].x != FLAGGED) {
         return;
     }
     var c = fit_coord(vec2<i32>(0));

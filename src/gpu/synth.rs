@@ -313,8 +313,8 @@ impl Variant {
 }
 
 /// A compute pipeline built on first use, per [`Variant`]: a synthesis needs 5 of the
-/// 13 passes' pipelines, and building one costs ~10 ms on lavapipe (measured: 130 ms for
-/// all 13 at start-up).
+/// 12 passes' pipelines, and building one costs ~10 ms on lavapipe (measured: 130 ms for
+/// all of them at start-up).
 struct LazyPipeline {
     shader: &'static ShaderSource,
     module: std::sync::OnceLock<wgpu::ShaderModule>,
@@ -363,7 +363,7 @@ impl LazyPipeline {
     }
 }
 
-/// The bind group layout every pass shares and the pipelines of the 13 passes, built on
+/// The bind group layout every pass shares and the pipelines of the 12 passes, built on
 /// first use. One per device ([`GpuContext`] keeps it), so that every synthesizer on a
 /// device shares compiled pipelines, and so that they can be built ahead of time
 /// ([`GpuContext::prepare_pipelines`]) while the host does other work.
@@ -381,7 +381,6 @@ pub(crate) struct PassPipelines {
     magnify: LazyPipeline,
     fill: LazyPipeline,
     advect: LazyPipeline,
-    advect_copy: LazyPipeline,
     distortion: LazyPipeline,
 }
 
@@ -453,7 +452,6 @@ impl PassPipelines {
             magnify: LazyPipeline::new(&shaders::MAGNIFY),
             fill: LazyPipeline::new(&shaders::FILL),
             advect: LazyPipeline::new(&shaders::ADVECT),
-            advect_copy: LazyPipeline::new(&shaders::ADVECT_COPY),
             distortion: LazyPipeline::new(&shaders::DISTORTION),
         }
     }
@@ -469,7 +467,6 @@ impl PassPipelines {
             PassKind::CorrectAniso => &self.correct_aniso,
             PassKind::GatherAniso => &self.gather_aniso,
             PassKind::Fill => &self.fill,
-            PassKind::AdvectCopy => &self.advect_copy,
             PassKind::Advect => &self.advect,
             PassKind::Distortion => &self.distortion,
         };

@@ -48,13 +48,12 @@ pub fn velocity_at(p: &PassParams, velocity: &[[i32; 2]], abs: [i32; 2]) -> [i32
     velocity[(y * p.window_size[0] + x) as usize]
 }
 
-/// Mirror of `advect_copy.wgsl`: the level's coordinates to the scratch region.
-pub fn copy(p: &PassParams, coords: &mut [[i32; 2]]) {
-    let n = (p.size[0] * p.size[1]) as usize;
-    let (b, f) = (p.coord_base as usize, p.flag_base as usize);
-    coords.copy_within(b..b + n, f);
-}
+/// A pixel the distortion pass flags for upsampling, in place of its coordinate (no
+/// coordinate is this).
+pub const FLAGGED: i32 = i32::MIN;
 
+/// Mirror of `advect.wgsl`: the level's advected coordinates, into the scratch region
+/// (`flag_base`), from which [`distortion`] copies them back.
 pub fn advect(p: &PassParams, coords: &mut [[i32; 2]], jac: &[[i32; 4]], velocity: &[[i32; 2]]) {
     let unit = 1i32 << (VELOCITY_FRAC + p.steps);
     for y in 0..p.size[1] {
@@ -68,14 +67,15 @@ pub fn advect(p: &PassParams, coords: &mut [[i32; 2]], jac: &[[i32; 4]], velocit
                 .map(|c| c.clamp(-MAX_RESIDUAL, MAX_RESIDUAL));
             let sx = (x - k[0]).clamp(0, p.size[0] - 1);
             let sy = (y - k[1]).clamp(0, p.size[1] - 1);
-            let prev = coords[p.flag_base as usize + (sy * p.size[0] + sx) as usize];
+            let prev = coords[p.coord_base as usize + (sy * p.size[0] + sx) as usize];
             let j = jac[i];
             let d = p.dither as i32;
             let o = [
                 (j[0] * v[0] + j[1] * v[1] + d) >> JV_SHIFT,
                 (j[2] * v[0] + j[3] * v[1] + d) >> JV_SHIFT,
             ];
-            coords[i] = fit_coord([prev[0] - o[0], prev[1] - o[1]], p);
+            coords[p.flag_base as usize + (y * p.size[0] + x) as usize] =
+                fit_coord([prev[0] - o[0], prev[1] - o[1]], p);
         }
     }
 }
@@ -97,19 +97,22 @@ fn step_err(p: &PassParams, d: [i32; 2]) -> u32 {
     c[0] * c[0] + c[1] * c[1]
 }
 
+/// Mirror of `distortion.wgsl`: reads the advected coordinates from the scratch region
+/// and writes them back to the level, the pixels to upsample again as [`FLAGGED`].
 pub fn distortion(p: &PassParams, coords: &mut [[i32; 2]], jac: &[[i32; 4]], surface: &[u32]) {
     let base = p.coord_base as usize;
-    let mut flags = Vec::with_capacity((p.size[0] * p.size[1]) as usize);
+    let scratch = p.flag_base as usize;
+    let mut out = Vec::with_capacity((p.size[0] * p.size[1]) as usize);
     for y in 0..p.size[1] {
         for x in 0..p.size[0] {
-            let t = (y * p.size[0] + x) as u32;
-            if !in_chart(p, surface, t) {
-                flags.push(0);
+            let t = (y * p.size[0] + x) as usize;
+            let s = coords[scratch + t];
+            if !in_chart(p, surface, t as u32) {
+                out.push(s);
                 continue;
             }
-            let i = base + t as usize;
-            let (s, j, h) = (coords[i], jac[i], p.spacing);
-            let at = |dx: i32, dy: i32| coords[base + region_index([x + dx, y + dy], p)];
+            let (j, h) = (jac[base + t], p.spacing);
+            let at = |dx: i32, dy: i32| coords[scratch + region_index([x + dx, y + dy], p)];
             let axis = |e: [i32; 2]| {
                 let ex = scaled_jd(h, j, e);
                 let f = at(e[0], e[1]);
@@ -126,12 +129,14 @@ pub fn distortion(p: &PassParams, coords: &mut [[i32; 2]], jac: &[[i32; 4]], sur
                 }
             };
             let err = axis([1, 0]) + axis([0, 1]);
-            flags.push((err > p.distortion_max) as i32);
+            out.push(if err > p.distortion_max {
+                [FLAGGED; 2]
+            } else {
+                s
+            });
         }
     }
-    for (t, f) in flags.into_iter().enumerate() {
-        coords[p.flag_base as usize + t] = [f, 0];
-    }
+    coords[base..base + out.len()].copy_from_slice(&out);
 }
 
 /// Squared step error of a whole pixel step at spacing `h`, `(h 256)^2`: beyond it an
@@ -232,9 +237,22 @@ mod tests {
             ..Default::default()
         };
         let jac = vec![[1024, 0, 0, 1024]; 64];
+        // The advected coordinates in the scratch region, as the advect pass leaves them.
         coords.resize(128, [0, 0]);
+        coords.copy_within(0..64, 64);
         distortion(&p, coords, &jac, &[]);
-        coords[64..].iter().map(|f| f[0]).collect()
+        coords[..64]
+            .iter()
+            .zip(64..)
+            .map(|(c, s)| {
+                if *c == [FLAGGED; 2] {
+                    1
+                } else {
+                    assert_eq!(*c, coords[s], "unflagged pixels are copied back");
+                    0
+                }
+            })
+            .collect()
     }
 
     #[test]
@@ -265,8 +283,14 @@ mod tests {
                 dither: dither(frame),
                 ..p
             };
-            copy(&p, &mut coords);
             advect(&p, &mut coords, &jac, &velocity);
+            // Copied back from the scratch region, nothing flagged (as on the coarsest
+            // advected level).
+            let back = PassParams {
+                distortion_max: u32::MAX,
+                ..p
+            };
+            distortion(&back, &mut coords, &jac, &[]);
         }
         for x in 0..n {
             // Exact for the quantized velocity, in 1/256 exemplar pixel.
@@ -299,8 +323,9 @@ mod tests {
         let fast = 64 << VELOCITY_FRAC;
         let velocity = [[-fast, -fast], [fast, fast], [-fast, -fast]];
         let start = [8000 << 8, 8000 << 8];
-        let mut coords = vec![start, start];
+        let mut coords = vec![start, [0, 0]];
         advect(&p, &mut coords, &jac, &velocity);
+        coords[0] = coords[1];
         // k = 1 level pixel = 128 pixels: S[p] = S'[p - k] - J (V - k), V - k clamped.
         let v = -128.0 * 1024.0;
         let expected = [

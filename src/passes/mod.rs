@@ -125,10 +125,6 @@ pub fn run_cpu_frame(
                 fill::run(&d.params, coords, jac, surface);
                 None
             }
-            PassKind::AdvectCopy => {
-                advect::copy(&d.params, coords);
-                None
-            }
             PassKind::Advect => {
                 advect::advect(&d.params, coords, jac, velocity);
                 None

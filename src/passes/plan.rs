@@ -482,11 +482,10 @@ pub enum PassKind {
     GatherAniso,
     /// Atlas synthesis: refill the gutters through the indirection map.
     Fill,
-    /// Advection: copy a level's coordinates to the scratch region.
-    AdvectCopy,
-    /// Advection: move the coordinates with the flow.
+    /// Advection: move the coordinates with the flow (into the scratch region).
     Advect,
-    /// Advection: flag the pixels whose coordinates the flow distorted too much.
+    /// Advection: copy the moved coordinates back, flagging the pixels whose
+    /// coordinates the flow distorted too much (for the upsample pass).
     Distortion,
 }
 
@@ -520,9 +519,7 @@ impl Dispatch {
                 [p.window_size[0] as u32, p.window_size[1] as u32]
             }
             PassKind::Fill => [p.fill_count.min(FILL_ROW), p.fill_count.div_ceil(FILL_ROW)],
-            PassKind::AdvectCopy | PassKind::Advect | PassKind::Distortion => {
-                [p.size[0] as u32, p.size[1] as u32]
-            }
+            PassKind::Advect | PassKind::Distortion => [p.size[0] as u32, p.size[1] as u32],
         }
     }
 }
@@ -582,11 +579,6 @@ impl SynthPlan {
                 ..base
             };
             out.push(Dispatch {
-                kind: PassKind::AdvectCopy,
-                level,
-                params: adv,
-            });
-            out.push(Dispatch {
                 kind: PassKind::Advect,
                 level,
                 params: PassParams {
@@ -594,12 +586,22 @@ impl SynthPlan {
                     ..adv
                 },
             });
+            // The advected coordinates wait in the scratch region; the distortion pass
+            // writes them back (on the coarsest level, which has nothing to upsample
+            // from, none is flagged).
+            out.push(Dispatch {
+                kind: PassKind::Distortion,
+                level,
+                params: if level > 0 {
+                    adv
+                } else {
+                    PassParams {
+                        distortion_max: u32::MAX,
+                        ..adv
+                    }
+                },
+            });
             if level > 0 {
-                out.push(Dispatch {
-                    kind: PassKind::Distortion,
-                    level,
-                    params: adv,
-                });
                 out.push(Dispatch {
                     kind: PassKind::UpsampleAniso,
                     level,

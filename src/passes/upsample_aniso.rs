@@ -63,7 +63,8 @@ pub fn run(p: &PassParams, coords: &mut [[i32; 2]], jac: &[[i32; 4]]) {
         for x in 0..p.size[0] {
             // Advection: only the pixels the distortion pass flagged.
             if p.flag_base != 0
-                && coords[(p.flag_base + (y * p.size[0] + x) as u32) as usize][0] == 0
+                && coords[p.coord_base as usize + (y * p.size[0] + x) as usize][0]
+                    != super::advect::FLAGGED
             {
                 continue;
             }
