@@ -615,7 +615,8 @@ impl SynthPlan {
             // fourth frame; measured: the same figures as every other frame, 256x256
             // vortex over 300 frames, gravel and brick), in turn and staggered between
             // levels. Measured (README): a fifth less per frame than half of every
-            // level's subpasses, at about half a synthesis at 512x512 on lavapipe.
+            // level's subpasses; with the quarter-pixel reads, about 42% of a synthesis
+            // at 512x512 on lavapipe (35-46%).
             let mut subpass = 0u64;
             let mut keep_fill = true;
             for d in full.iter().filter(|d| d.level == level) {
