@@ -90,6 +90,9 @@ impl Advection {
                 mapped_at_creation: false,
             });
             let texture = synthesizer.output_texture(ctx, params.width, params.height);
+            if options.quarter_reads {
+                synthesizer.fine_tables(ctx);
+            }
             let entry = |binding, ty| wgpu::BindGroupLayoutEntry {
                 binding,
                 visibility: wgpu::ShaderStages::COMPUTE,

@@ -187,7 +187,7 @@ pub struct GpuSynthesizer {
 /// for the corrections that read quarter pixels (`PassParams::quarter`): one read of 16
 /// bytes where bilinear interpolation reads four. 16 times the level's tables (8 MiB
 /// for a 128x128 exemplar), built and uploaded on first use only.
-struct FineTables {
+pub(crate) struct FineTables {
     /// `et_base` of the level they were built for.
     et_base: u32,
     et: wgpu::Buffer,
@@ -196,8 +196,8 @@ struct FineTables {
 
 impl FineTables {
     /// Builds the tables for the finest level, or `None` if a table exceeds the
-    /// device's buffer limits. `p`: the parameters of a correction at that level.
-    fn build(ctx: &GpuContext, a: &Analysis, p: &PassParams) -> Option<Self> {
+    /// device's buffer limits.
+    fn build(ctx: &GpuContext, a: &Analysis) -> Option<Self> {
         let level = a.levels.last()?;
         let px = a.width as u64 * a.height as u64;
         let bytes = px << (2 * crate::passes::common::QUARTER_BITS) << 4;
@@ -209,7 +209,14 @@ impl FineTables {
         {
             return None;
         }
-        let p = PassParams { quarter: 1, ..*p };
+        // What the table reads depend on: the exemplar's size and wrapping.
+        let p = PassParams {
+            ex_size: [a.width as i32, a.height as i32],
+            tileable: a.tileable as i32,
+            quarter: 1,
+            et_base: ((a.levels.len() - 1) as u64 * px) as u32,
+            ..Default::default()
+        };
         let (et, qe) = std::thread::scope(|s| {
             let et = s.spawn(|| crate::passes::correct_aniso::quarter_table(&p, &level.et));
             let qe = crate::passes::correct_aniso::quarter_table(&p, &level.qe);
@@ -614,6 +621,16 @@ impl GpuSynthesizer {
         &self.analysis
     }
 
+    /// The finest level's quarter-pixel tables, built and uploaded now if not yet
+    /// (inside the caller's error scope); `None` if they exceed the device's limits.
+    /// [`crate::gpu::advect::Advection::new`] calls it so that the first frame does not
+    /// pay for them.
+    pub(crate) fn fine_tables(&self, ctx: &GpuContext) -> Option<&FineTables> {
+        self.fine
+            .get_or_init(|| FineTables::build(ctx, &self.analysis))
+            .as_ref()
+    }
+
     /// Checks an output size against the device limits before any work is recorded.
     fn check_output(&self, ctx: &GpuContext, plan: &SynthPlan) -> Result<()> {
         let limits = ctx.limits();
@@ -850,11 +867,11 @@ impl GpuSynthesizer {
                 && d.params.full_distance == 0
                 && d.params.et_base == finest_base
         };
-        let fine = schedule.iter().find(|d| fine_dispatch(d)).and_then(|d| {
-            self.fine
-                .get_or_init(|| FineTables::build(ctx, &self.analysis, &d.params))
-                .as_ref()
-        });
+        let fine = schedule
+            .iter()
+            .any(fine_dispatch)
+            .then(|| self.fine_tables(ctx))
+            .flatten();
         let make_bind_group =
             |colors: &wgpu::Buffer,
              target: &wgpu::TextureView,
