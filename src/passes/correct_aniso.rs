@@ -23,10 +23,10 @@
 //!
 //! `p.quarter` (advection frames) rounds every interpolated read to its nearest quarter
 //! pixel, so the GPU can read the finest level's `Et` and `qe` from tables supersampled
-//! at quarter pixels ([`quarter_table`]): one read instead of four, about half the
-//! finest level's correction time on lavapipe. Advection measured the same figures with
-//! it; a synthesis along a swirl lost 2-3 points of Jacobian fidelity, so synthesis keeps
-//! the exact positions.
+//! at quarter pixels ([`quarter_table`]): one read instead of four, a quarter less of
+//! the finest level's correction time on lavapipe. Advection measured figures a few
+//! percent either way with it; a synthesis along a swirl lost 1-4 points of Jacobian
+//! fidelity, so synthesis keeps the exact positions.
 
 use super::common::{
     bilinear_taps, fit_coord, is_valid_fx, nearest_texel, phi_inv, quarter_texel, read_coord_fx,
