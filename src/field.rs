@@ -438,8 +438,14 @@ pub fn load_direction_scale_image(path: &Path) -> Result<FieldMap> {
 /// A full 2x2 field from an EXR the size of the output: channels R, G, B, A hold the
 /// Jacobian row-major `(a, b, c, d)` (exemplar pixels per output pixel).
 pub fn load_jacobian_exr(path: &Path) -> Result<FieldMap> {
-    let img = crate::image_io::open_image(path)?;
+    let (img, exr_channels) = crate::image_io::open_image_exr_channels(path)?;
     let (w, h) = (img.width(), img.height());
+    if let Some(n) = exr_channels {
+        return Err(Error::InvalidParameter(format!(
+            "{}: a Jacobian EXR needs 4 channels (R, G, B, A = J00, J01, J10, J11), it has {n}",
+            path.display()
+        )));
+    }
     if !matches!(
         img,
         image::DynamicImage::ImageRgba32F(_) | image::DynamicImage::ImageRgb32F(_)

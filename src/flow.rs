@@ -160,7 +160,17 @@ impl Flow {
 
     /// Reads a user velocity image (see [`FLOW_HELP`]).
     pub fn load(path: &Path) -> Result<Flow> {
-        let img = crate::image_io::open_image(path)?;
+        let (img, exr_channels) = crate::image_io::open_image_exr_channels(path)?;
+        let values = exr_channels
+            .unwrap_or(img.color().channel_count() as u32 - img.color().has_alpha() as u32);
+        if values < 2 {
+            return Err(Error::BadImage {
+                path: path.to_path_buf(),
+                reason: "it holds one value per pixel (grey); a velocity field needs two, x in \
+                         red and y in green (or an EXR's first two channels)"
+                    .into(),
+            });
+        }
         let (width, height) = (img.width(), img.height());
         let is_exr = path
             .extension()
@@ -242,6 +252,7 @@ impl std::str::FromStr for Flow {
             "image" if !rest.is_empty() => {
                 Flow::load(Path::new(rest)).map_err(|e| e.to_string())?
             }
+            "image" => return Err("image: give the velocity image's file (image:FILE)".into()),
             _ => return Err(format!("'{s}': unknown flow (see --help)\n{FLOW_HELP}")),
         })
     }

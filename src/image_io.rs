@@ -615,6 +615,17 @@ fn decode_any(path: &Path) -> Result<Decoded> {
         image::ImageError::IoError(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => {
             format!("the file is truncated ({e})")
         }
+        image::ImageError::Limits(_) => {
+            let size = image::ImageReader::open(path)
+                .ok()
+                .and_then(|r| r.with_guessed_format().ok())
+                .and_then(|r| r.into_dimensions().ok())
+                .map_or(String::new(), |(w, h)| format!("it is {w}x{h} pixels: "));
+            format!(
+                "{size}too large to decode ({e}; the decoder's limit is 512 MiB of pixels); \
+                 give a smaller image"
+            )
+        }
         _ => e.to_string(),
     };
     // The `image` crate reads only RGB(A) EXRs: read 1- and 2-channel ones with `exr`.
@@ -666,8 +677,10 @@ impl Drop for TempGuard {
 ///
 /// All failures are [`Error::Write`] naming `path` (an error returned by `write` that is
 /// already an `Error::Write` is passed through unchanged; other errors are wrapped).
-/// Renaming replaces a symlink at `path` rather than the file it points to, and the new
-/// file gets default permissions.
+/// A symlink at `path` is followed: the file it points to is replaced. The new file gets
+/// default permissions. A `path` that is not a regular file (`/dev/null`, a named pipe)
+/// is written to directly, never replaced. Temporary files that a killed run left for
+/// the same `path` (their process is gone) are removed.
 pub fn write_atomic(
     path: &Path,
     write: impl FnOnce(&mut BufWriter<File>) -> Result<()>,
@@ -676,12 +689,30 @@ pub fn write_atomic(
         path: path.to_path_buf(),
         reason,
     };
+    let resolved = follow_symlinks(path).map_err(werr)?;
+    let path = resolved.as_path();
 
     let Some(file_name) = path.file_name() else {
         return Err(werr("the path does not name a file".into()));
     };
     if path.is_dir() {
         return Err(werr("it is a directory; give a file name".into()));
+    }
+    if let Ok(meta) = fs::metadata(path) {
+        if !meta.is_file() {
+            // A device or a pipe: a stream, not a file to replace.
+            let file = OpenOptions::new()
+                .write(true)
+                .open(path)
+                .map_err(|e| werr(format!("cannot open it for writing: {e}")))?;
+            let mut w = BufWriter::new(file);
+            write(&mut w).map_err(|e| match e {
+                Error::Write { .. } => e,
+                other => werr(other.to_string()),
+            })?;
+            w.into_inner().map_err(|e| werr(e.error().to_string()))?;
+            return Ok(());
+        }
     }
     let dir = match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
@@ -698,6 +729,7 @@ pub fn write_atomic(
         }));
     }
 
+    remove_stale_temporaries(&dir, file_name);
     let mut tmp_name = OsString::from(".");
     tmp_name.push(file_name);
     tmp_name.push(format!(
@@ -741,6 +773,59 @@ pub fn write_atomic(
         let _ = d.sync_all();
     }
     Ok(())
+}
+
+/// `path` with its symlinks followed (a dangling link names the file to create).
+fn follow_symlinks(path: &Path) -> std::result::Result<PathBuf, String> {
+    let mut p = path.to_path_buf();
+    for _ in 0..32 {
+        match fs::symlink_metadata(&p) {
+            Ok(m) if m.file_type().is_symlink() => {
+                let target = fs::read_link(&p).map_err(|e| format!("cannot read the link: {e}"))?;
+                p = match p.parent() {
+                    Some(dir) if target.is_relative() => dir.join(target),
+                    _ => target,
+                };
+            }
+            _ => return Ok(p),
+        }
+    }
+    Err("too many levels of symbolic links".into())
+}
+
+/// Removes `.{file_name}.{pid}.{n}.tmp` files in `dir` whose process no longer runs
+/// (left by a run that was killed while writing). Only where `/proc` tells which
+/// processes run; best effort.
+fn remove_stale_temporaries(dir: &Path, file_name: &std::ffi::OsStr) {
+    if !Path::new("/proc/self").exists() {
+        return;
+    }
+    let Some(name) = file_name.to_str() else {
+        return;
+    };
+    let prefix = format!(".{name}.");
+    let Ok(entries) = fs::read_dir(dir) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let entry_name = entry.file_name();
+        let Some(rest) = entry_name
+            .to_str()
+            .and_then(|n| n.strip_prefix(&prefix))
+            .and_then(|n| n.strip_suffix(".tmp"))
+        else {
+            continue;
+        };
+        let Some((pid, n)) = rest.split_once('.') else {
+            continue;
+        };
+        let (Ok(pid), Ok(_)) = (pid.parse::<u32>(), n.parse::<u64>()) else {
+            continue;
+        };
+        if pid != std::process::id() && !Path::new(&format!("/proc/{pid}")).exists() {
+            let _ = fs::remove_file(entry.path());
+        }
+    }
 }
 
 // ---------------------------------------------------------------------------------------
@@ -964,7 +1049,7 @@ pub fn save_coords_exr_f32_atomic(
 pub fn load_coords_exr_f32(path: &Path) -> Result<(u32, u32, Vec<[f32; 2]>)> {
     // The decoder's own message (e.g. for a 4-channel XYZW EXR) does not say what is
     // expected.
-    let img = decode_image(path).map_err(|e| match e {
+    let (img, exr_channels) = open_image_exr_channels(path).map_err(|e| match e {
         Error::BadImage { path, reason } => Error::BadImage {
             path,
             reason: format!(
@@ -978,6 +1063,13 @@ pub fn load_coords_exr_f32(path: &Path) -> Result<(u32, u32, Vec<[f32; 2]>)> {
         path: path.to_path_buf(),
         reason,
     };
+    if exr_channels == Some(1) {
+        return Err(bad(
+            "a 1-channel EXR holds one value per pixel; a coordinate map needs two (x, y), as \
+             --coords-out writes"
+                .into(),
+        ));
+    }
     let (width, height) = (img.width(), img.height());
     let pixels: Vec<[f32; 2]> = match &img {
         DynamicImage::ImageRgb32F(b) => b.pixels().map(|p| [p.0[0], p.0[1]]).collect(),

@@ -1251,3 +1251,70 @@ fn animated_exemplars_warn_and_also_names_with_equals() {
     );
     assert_eq!(png_size(&dir.path("r=1.png")), (24, 24));
 }
+
+/// Findings of the fifteenth session's bad-input audit.
+#[test]
+fn audit_findings_fail_cleanly() {
+    let dir = TempDir::new("audit");
+    // Command lines as one string (no argument holds a space); `G` is the exemplar.
+    let line = |s: &str| -> Vec<String> {
+        s.split_whitespace()
+            .map(|a| {
+                if a == "G" {
+                    GRAVEL.to_string()
+                } else {
+                    a.to_string()
+                }
+            })
+            .collect()
+    };
+    let cases = [
+        // A huge advection is refused before anything of its size is allocated.
+        (
+            "advect G --flow uniform:1,0 --frames 2 -o fr --size 100000",
+            1,
+            "give a smaller --size",
+        ),
+        // The most negative window origin is out of range, not an overflow.
+        (
+            "synth G -o o.png --size 16 --window=-2147483648,0",
+            2,
+            "within",
+        ),
+        // A missing --also map is named before the analysis.
+        (
+            "synth G -o o.png --size 16 --also nope.png=h.png",
+            1,
+            "--also: cannot read",
+        ),
+        ("advect G --flow uniform:1,0 --frames 2 -o .", 1, "by name"),
+        ("advect G --flow image: --frames 2 -o fr", 2, "image:FILE"),
+        // bench checks a preset field before any work.
+        (
+            "bench G --sizes 16 --runs 1 --warmup 0 --field scale:0",
+            1,
+            "zero scale",
+        ),
+    ];
+    for (cmd, code, needle) in cases {
+        let args = line(cmd);
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        fails(&dir, &args, code, needle);
+    }
+    // eval --flow takes each frame's time from its number: a folder that starts at frame
+    // 1 gives the same figures for the same pairs as the whole sequence.
+    let advect = line("advect G --flow gusts:3,0.5 --frames 3 --size 24 -o all -q");
+    ok(&dir, &advect.iter().map(String::as_str).collect::<Vec<_>>());
+    std::fs::create_dir(dir.path("from1")).unwrap();
+    for i in 1..=3 {
+        let name = format!("frame_{i:05}.png");
+        std::fs::copy(dir.path("all").join(&name), dir.path("from1").join(&name)).unwrap();
+    }
+    let warped = |folder: &str| -> Vec<String> {
+        let json = ok(&dir, &["eval", GRAVEL, folder, "--flow", "gusts:3,0.5"]);
+        let start = json.find("\"warped_diff\":[").unwrap() + 15;
+        let end = start + json[start..].find(']').unwrap();
+        json[start..end].split(',').map(str::to_string).collect()
+    };
+    assert_eq!(warped("all")[1..], warped("from1")[..]);
+}

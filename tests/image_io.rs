@@ -806,3 +806,68 @@ fn direction_scale_fields_from_one_and_two_channel_exrs() {
         }
     }
 }
+
+#[test]
+fn one_channel_exr_is_refused_where_two_values_are_needed() {
+    let dir = TempDir::new("exr-one-value");
+    let (w, h) = (16usize, 16usize);
+    let path = dir.join("y.exr");
+    write_exr(&path, w, h, &[("Y", vec![0.25; w * h])]);
+    let e = load_coords_exr_f32(&path).unwrap_err().to_string();
+    assert!(e.contains("needs two"), "{e}");
+    let e = texsyn::flow::Flow::load(&path).unwrap_err().to_string();
+    assert!(e.contains("needs two"), "{e}");
+    let e = texsyn::field::load_jacobian_exr(&path)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("it has 1"), "{e}");
+    // A grey PNG is no velocity field either; an RGB one is.
+    let grey = dir.join("grey.png");
+    save(&DynamicImage::ImageLuma8(ImageBuffer::new(8, 8)), &grey);
+    assert!(texsyn::flow::Flow::load(&grey).is_err());
+    let rgb = dir.join("rgb.png");
+    save(&DynamicImage::ImageRgb8(ImageBuffer::new(8, 8)), &rgb);
+    assert!(texsyn::flow::Flow::load(&rgb).is_ok());
+}
+
+#[cfg(unix)]
+#[test]
+fn atomic_write_follows_symlinks_keeps_devices_and_clears_stale_temporaries() {
+    use std::io::Write;
+    let dir = TempDir::new("atomic-special");
+    let write = |path: &Path, data: &'static [u8]| {
+        write_atomic(path, move |w| {
+            w.write_all(data).unwrap();
+            Ok(())
+        })
+    };
+    // A symlink: the file it points to gets the content, the link stays.
+    let real = dir.join("real.bin");
+    let link = dir.join("link.bin");
+    std::fs::write(&real, b"old").unwrap();
+    std::os::unix::fs::symlink("real.bin", &link).unwrap();
+    write(&link, b"new").unwrap();
+    assert!(std::fs::symlink_metadata(&link)
+        .unwrap()
+        .file_type()
+        .is_symlink());
+    assert_eq!(std::fs::read(&real).unwrap(), b"new");
+    // A device is written to, not replaced.
+    write(Path::new("/dev/null"), b"discarded").unwrap();
+    use std::os::unix::fs::FileTypeExt;
+    assert!(std::fs::metadata("/dev/null")
+        .unwrap()
+        .file_type()
+        .is_char_device());
+    // A temporary file of a process that is gone is removed by the next write to the
+    // same target; one of a running process (pid 1) is kept.
+    if Path::new("/proc/self").exists() {
+        let stale = dir.join(".out.bin.4000000000.0.tmp");
+        let live = dir.join(".out.bin.1.0.tmp");
+        std::fs::write(&stale, b"partial").unwrap();
+        std::fs::write(&live, b"partial").unwrap();
+        write(&dir.join("out.bin"), b"data").unwrap();
+        assert!(!stale.exists());
+        assert!(live.exists());
+    }
+}

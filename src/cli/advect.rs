@@ -171,9 +171,13 @@ impl Staging {
                 target.display()
             )));
         }
-        let name = target
-            .file_name()
-            .ok_or_else(|| fail(format!("{}: not a folder name", target.display())))?;
+        let name = target.file_name().ok_or_else(|| {
+            fail(format!(
+                "-o {}: give the frames' folder by name (e.g. -o frames or -o ../frames): \
+                     the finished folder replaces it as a whole, which `.` or `..` cannot be",
+                target.display()
+            ))
+        })?;
         let parent = match target.parent() {
             Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
             _ => PathBuf::from("."),
@@ -311,11 +315,6 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
         quarter_reads: !args.exact_reads,
     };
     options.check()?;
-    // A flow image must have the output's size (on a mesh it is refused by the atlas
-    // projection): checked before the analysis.
-    if args.mesh.is_none() {
-        flow.sample(args.size[0], args.size[1], 0.0)?;
-    }
     // The temporal figures printed at the end use 5x5 windows: refuse what they cannot
     // measure before any frame is written.
     if args.mesh.is_none() && (args.size[0] < 5 || args.size[1] < 5) {
@@ -327,13 +326,17 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
     let source = read_source(ui, &args.exemplar, None, args.tile.get())?;
     let ctx = GpuContext::headless()?;
     ui.info(format!("adapter: {}", ctx.describe()));
+    let size_hint = if args.mesh.is_some() {
+        "advection keeps the whole atlas in one synthesis: give a smaller --atlas-size"
+    } else {
+        "advection keeps each whole frame in one synthesis: give a smaller --size"
+    };
     if args.mesh.is_none() {
-        super::check_output_size_hint(
-            &ctx,
-            args.size[0],
-            args.size[1],
-            "advection keeps each whole frame in one synthesis: give a smaller --size",
-        )?;
+        // Before anything of the output's size is allocated on the host.
+        super::check_output_size_hint(&ctx, args.size[0], args.size[1], size_hint)?;
+        // A flow image must have the output's size (on a mesh it is refused by the atlas
+        // projection): checked before the analysis.
+        flow.sample(args.size[0], args.size[1], 0.0)?;
     }
     source.check_fits(&ctx, AnalysisOptions::default().k)?;
     let analysis = match source {
@@ -389,13 +392,16 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
     const FULL_EVERY: u32 = 8;
     let time_full = || -> CliResult<Duration> {
         let t = Instant::now();
-        synthesizer.synthesize(&ctx, &params)?;
+        synthesizer
+            .synthesize(&ctx, &params)
+            .map_err(|e| super::synth::with_hint(e, size_hint))?;
         Ok(t.elapsed())
     };
     time_full()?;
     let mut full = vec![time_full()?];
 
-    let mut adv = Advection::new(&ctx, synthesizer.clone(), &params, options)?;
+    let mut adv = Advection::new(&ctx, synthesizer.clone(), &params, options)
+        .map_err(|e| super::synth::with_hint(e, size_hint))?;
     let velocity_at = |t: u32| -> CliResult<Vec<[f32; 2]>> {
         match &surface {
             Some(prep) => Ok(texsyn::surface::flow::atlas_velocity(

@@ -129,6 +129,11 @@ pub fn run(ui: &Ui, args: BenchArgs) -> CliResult<()> {
             )));
         };
         file_field = Some(spec.resolve([0, 0], *w, *h)?);
+    } else if let Some(spec) = &args.field {
+        // Presets: their values (e.g. a zero scale) are checked before any work too.
+        for &[w, h] in &args.sizes.0 {
+            spec.resolve([0, 0], w, h)?;
+        }
     }
     let t = Instant::now();
     let source = read_source(ui, &args.exemplar, None, None)?;
@@ -212,7 +217,7 @@ pub fn run(ui: &Ui, args: BenchArgs) -> CliResult<()> {
         args.passes, args.finest_passes, args.distance, args.seed, args.warmup, args.runs
     ))?;
     ui.out(match &args.field {
-        Some(f) => format!("field: {f:?}"),
+        Some(f) => format!("field: {}", f.spec()),
         None => "field: none (isometric)".to_string(),
     })?;
     ui.out("")?;

@@ -326,7 +326,9 @@ fn temporal(
     let mut figures =
         quality::TemporalFigures::new(&FloatImage::from_exemplar(exemplar), args.energy_every);
     figures.push(first, &[])?;
-    for (t, path) in paths.iter().enumerate().skip(1) {
+    for path in paths.iter().skip(1) {
+        // The frame's own number is its time (a folder may start after frame 0).
+        let t = index(path).unwrap_or(0);
         let frame = load_image(path)?;
         if (frame.width, frame.height) != (w, h) {
             return Err(fail(format!(

@@ -144,6 +144,31 @@ impl FieldSpec {
             .map(|f| ("--field file", f))
     }
 
+    /// The spec as `--field` takes it (for reports).
+    pub fn spec(&self) -> String {
+        let list = |name: &str, v: &[f64]| {
+            if v.is_empty() {
+                name.to_string()
+            } else {
+                let nums: Vec<String> = v.iter().map(|x| x.to_string()).collect();
+                format!("{name}:{}", nums.join(","))
+            }
+        };
+        match self {
+            FieldSpec::Constant {
+                angle_deg,
+                scale,
+                shear,
+            } => format!("constant:{angle_deg},{},{},{shear}", scale[0], scale[1]),
+            FieldSpec::Vortex(v) => list("vortex", v),
+            FieldSpec::Swirl(v) => list("swirl", v),
+            FieldSpec::Radial(v) => list("radial", v),
+            FieldSpec::Perspective(v) => list("perspective", v),
+            FieldSpec::Image(p) => format!("image:{}", p.display()),
+            FieldSpec::Exr(p) => format!("exr:{}", p.display()),
+        }
+    }
+
     /// The field for an output window `origin`, `width` x `height`: presets default to
     /// the window's centre; maps must have the window's size.
     pub fn resolve(&self, origin: [i32; 2], width: u32, height: u32) -> CliResult<Field> {

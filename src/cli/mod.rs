@@ -361,7 +361,7 @@ pub fn parse_window(s: &str) -> Result<[i32; 2], String> {
     let y: i32 = y.trim().parse().map_err(|_| usage())?;
     // Keep well inside i32 so the plan's margins cannot overflow.
     const LIMIT: i32 = 1 << 28;
-    if x.abs() > LIMIT || y.abs() > LIMIT {
+    if x.unsigned_abs() > LIMIT as u32 || y.unsigned_abs() > LIMIT as u32 {
         return Err(format!(
             "window origin {x},{y}: coordinates must lie within +-{LIMIT}"
         ));
@@ -396,6 +396,20 @@ pub fn check_output_dir(path: &Path) -> CliResult<()> {
             path.display()
         )));
     }
+    // A device or pipe (`-o /dev/null`) is written to as it is, not replaced (opening a
+    // pipe now would wait for its reader: the write reports any error).
+    if std::fs::metadata(path).is_ok_and(|m| !m.is_file()) {
+        return Ok(());
+    }
+    // A symlink names the file it points to (which is replaced), in that file's directory.
+    let resolved;
+    let path = match std::fs::canonicalize(path) {
+        Ok(p) if std::fs::symlink_metadata(path).is_ok_and(|m| m.file_type().is_symlink()) => {
+            resolved = p;
+            resolved.as_path()
+        }
+        _ => path,
+    };
     let dir = match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
         _ => PathBuf::from("."),
@@ -636,7 +650,16 @@ mod tests {
             assert!(parse_randomness(bad).is_err(), "{bad}");
         }
         assert_eq!(parse_window("-5,7"), Ok([-5, 7]));
-        for bad in ["", "1", "1,2,3", "a,b", "1.5,2", "999999999,0"] {
+        for bad in [
+            "",
+            "1",
+            "1,2,3",
+            "a,b",
+            "1.5,2",
+            "999999999,0",
+            "-2147483648,0",
+            "0,-2147483648",
+        ] {
             assert!(parse_window(bad).is_err(), "{bad}");
         }
         assert!(parse_coherence("4.5").is_err());

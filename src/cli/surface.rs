@@ -68,11 +68,13 @@ pub struct SurfaceArgs {
     #[arg(long, value_name = "PNG")]
     pub render: Option<PathBuf>,
 
-    /// Views in the render (orbiting the mesh, side by side)
-    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..))]
+    /// Views in the render (orbiting the mesh, side by side; 1 to 16)
+    #[arg(long, default_value_t = 4, requires = "render",
+          value_parser = clap::value_parser!(u32).range(1..=16))]
     pub views: u32,
-    /// Size of each rendered view in pixels
-    #[arg(long, default_value_t = 384, value_parser = clap::value_parser!(u32).range(1..))]
+    /// Size of each rendered view in pixels (16 to 4096)
+    #[arg(long, default_value_t = 384, requires = "render",
+          value_parser = clap::value_parser!(u32).range(16..=4096))]
     pub view_size: u32,
 
     /// Also write the raw colour atlas to this image
@@ -257,13 +259,18 @@ pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
     let mut source = read_source(ui, &args.exemplar, None, args.tile.get())?;
     // Material maps, aligned with the exemplar: (normal?, image) in material order.
     let mut material_maps = Vec::new();
-    for (path, normal) in [
-        (&args.normal_map, true),
-        (&args.roughness_map, false),
-        (&args.occlusion_map, false),
+    for (path, normal, option) in [
+        (&args.normal_map, true, "--normal-map"),
+        (&args.roughness_map, false, "--roughness-map"),
+        (&args.occlusion_map, false, "--occlusion-map"),
     ] {
         material_maps.push(match path {
-            Some(p) => Some((ui.load_exemplar(p)?, normal, p.clone())),
+            Some(p) => Some((
+                ui.load_exemplar(p)
+                    .map_err(|e| fail(format!("{option}: {e}")))?,
+                normal,
+                p.clone(),
+            )),
             None => None,
         });
     }

@@ -249,7 +249,23 @@ pub fn read_source(
     tileable: Option<bool>,
 ) -> CliResult<Source> {
     if !texsyn::session::is_analysis_file(path)? {
-        return Ok(Source::Image(ui.load_exemplar(path)?));
+        return ui
+            .load_exemplar(path)
+            .map(Source::Image)
+            .map_err(|e| match e {
+                texsyn::Error::BadImage { path, reason } if reason.starts_with("unrecognized") => {
+                    texsyn::Error::BadImage {
+                        path,
+                        reason: format!(
+                            "{reason}; nor is it a texsyn analysis file (it does not start with \
+                         the analysis-file magic: written by another program, or damaged; \
+                         re-run `texsyn analyze`)"
+                        ),
+                    }
+                    .into()
+                }
+                other => other.into(),
+            });
     }
     let analysis = Analysis::load(path)?;
     if let Some(k) = k.filter(|&k| k != analysis.k) {
@@ -296,9 +312,19 @@ pub fn crop_rows(pixels: &[[u8; 4]], width: u32, w: u32, h: u32) -> Vec<[u8; 4]>
         .collect()
 }
 
-/// The library's size errors name its API (`SynthParams::origin`); name the option.
-pub fn cli_hint(e: texsyn::Error) -> texsyn::Error {
-    with_hint(e, WINDOW_HINT)
+/// The library's size errors name its API (`SynthParams::origin`); name the option
+/// (a tileable output is one period: it cannot be split into windows).
+pub fn cli_hint(tileable_output: bool) -> impl Fn(texsyn::Error) -> texsyn::Error {
+    move |e| {
+        with_hint(
+            e,
+            if tileable_output {
+                "a tileable output is one synthesis: give a smaller --size"
+            } else {
+                WINDOW_HINT
+            },
+        )
+    }
 }
 
 /// `e` with `hint` if it is the library's output-too-large error.
@@ -356,6 +382,10 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
     for a in &args.also {
         check_output_dir(&a.output)?;
         check_save_extension(&a.output)?;
+        // Read now (cheap) so that a missing map does not cost an analysis; it is
+        // decoded and checked against the exemplar's size later.
+        std::fs::File::open(&a.input)
+            .map_err(|e| fail(format!("--also: cannot read {}: {e}", a.input.display())))?;
     }
     let [width, height] = args.size;
     // The field (a file's size and values too) before the analysis.
@@ -404,7 +434,7 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
     let ctx = GpuContext::headless()?;
     let device_time = t.elapsed();
     ui.info(format!("adapter: {}", ctx.describe()));
-    check_output_size(&ctx, width, height).map_err(cli_hint)?;
+    check_output_size(&ctx, width, height).map_err(cli_hint(args.tileable_output))?;
 
     source.check_fits(&ctx, args.k.unwrap_or(AnalysisOptions::default().k))?;
     let (analysis, from_file, analysis_time) = match source {
@@ -419,9 +449,17 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
             args.appearance.apply(&mut options)?;
             // With --magnify the mask may be given at the full exemplar's size, like
             // the --also maps: it is downsampled as the exemplar was.
-            if let (Some(f), Some(mask)) = (args.magnify, &options.feature_mask) {
+            if let (Some(f), Some(mask), Some((fw, fh))) =
+                (args.magnify, &options.feature_mask, full_size)
+            {
                 if (mask.width / f, mask.height / f) == (ex.width, ex.height) && f > 1 {
                     options.feature_mask = Some(mask.downsample(f)?);
+                } else if (mask.width, mask.height) != (ex.width, ex.height) {
+                    return Err(fail(format!(
+                        "--feature-mask: {}x{} pixels, but the exemplar is {fw}x{fh}; give the \
+                         mask at the exemplar's size",
+                        mask.width, mask.height
+                    )));
                 }
             }
             let a = texsyn::analysis::analyze(&ex, &options, ui.analysis_progress())?;
@@ -482,7 +520,8 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
     let (ew, eh) =
         full_size.unwrap_or((synthesizer.analysis().width, synthesizer.analysis().height));
     for a in &args.also {
-        let (mw, mh, map_channels, map_pixels) = texsyn::image_io::load_material_map(&a.input)?;
+        let (mw, mh, map_channels, map_pixels) = texsyn::image_io::load_material_map(&a.input)
+            .map_err(|e| fail(format!("--also: {e}")))?;
         if (mw, mh) != (ew, eh) {
             return Err(fail(format!(
                 "--also {}: {mw}x{mh} pixels, but the exemplar is {ew}x{eh}; extra maps must be aligned with it",
@@ -510,7 +549,7 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
         let t = Instant::now();
         let gpu = synthesizer
             .synthesize_magnified(&ctx, &params, hi, *hw, *hh, *f)
-            .map_err(cli_hint)?;
+            .map_err(cli_hint(args.tileable_output))?;
         ctx.take_uncaptured_errors()?;
         out_size = (gpu.width, gpu.height);
         let synth = t.elapsed();
@@ -534,7 +573,7 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
             Some((hi, hw, hh, f)) => {
                 let m = synthesizer
                     .synthesize_magnified_with_maps(&ctx, &params, hi, *hw, *hh, *f, &maps)
-                    .map_err(cli_hint)?;
+                    .map_err(cli_hint(args.tileable_output))?;
                 (
                     m.synthesis.coords_f32(),
                     m.width,
@@ -546,7 +585,7 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
             None => {
                 let (s, map_pixels) = synthesizer
                     .synthesize_with_maps(&ctx, &params, &maps)
-                    .map_err(cli_hint)?;
+                    .map_err(cli_hint(args.tileable_output))?;
                 (s.coords_f32(), width, height, s.colors, map_pixels)
             }
         };
@@ -582,7 +621,9 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
         };
     } else {
         let t = Instant::now();
-        let gpu = synthesizer.synthesize(&ctx, &params).map_err(cli_hint)?;
+        let gpu = synthesizer
+            .synthesize(&ctx, &params)
+            .map_err(cli_hint(args.tileable_output))?;
         ctx.take_uncaptured_errors()?;
         let synth = t.elapsed();
         let t = Instant::now();

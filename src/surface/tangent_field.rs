@@ -348,8 +348,15 @@ fn check_vector(v: Vec3, what: &str) -> Result<Vec3> {
     if !v.is_finite() {
         return Err(invalid(format!("{what} {v:?} is not finite")));
     }
-    v.try_normalize()
-        .ok_or_else(|| invalid(format!("{what} is zero; give a non-zero vector")))
+    // Scaled first so that huge or tiny (but finite) components normalize too.
+    let m = v.abs().max_element();
+    (v / m).try_normalize().ok_or_else(|| {
+        invalid(if m == 0.0 {
+            format!("{what} is zero; give a non-zero vector")
+        } else {
+            format!("{what} {v:?} cannot be normalized; give components between 1e-30 and 1e30")
+        })
+    })
 }
 
 fn check_scale(s: f32, what: &str) -> Result<f32> {
@@ -985,10 +992,12 @@ impl FromStr for DirectionSource {
             ("symmetric", None) => Err(fail("give N (symmetric:N)".into())),
             ("random", None) => Ok(DirectionSource::RandomPerRegion { seed: 0 }),
             ("random", Some(r)) => Ok(DirectionSource::RandomPerRegion {
-                seed: r
-                    .trim()
-                    .parse()
-                    .map_err(|_| fail(format!("SEED = `{r}` is not a whole number")))?,
+                seed: r.trim().parse().map_err(|_| {
+                    fail(format!(
+                        "SEED = `{r}` is not a whole number from 0 to {}",
+                        u32::MAX
+                    ))
+                })?,
             }),
             ("constraints", Some(path)) if !path.trim().is_empty() => Ok(
                 DirectionSource::Constraints(read_constraints(Path::new(path.trim()))?),
