@@ -522,3 +522,57 @@ fn shrunk_subpasses_leave_the_output_unchanged() {
         );
     }
 }
+
+/// An output assembled from windows is the one synthesis of the whole output, byte for
+/// byte: colours (seam blending included), coordinates and material maps, isometric and
+/// along a field, windows of odd sizes at the right and bottom edges.
+#[test]
+fn windows_assemble_into_the_whole_output() {
+    let a = analysis(false, 2);
+    let gpu = GpuSynthesizer::new(ctx(), a.clone()).unwrap();
+    let map = texsyn::gpu::synth::ExtraMap {
+        pixels: (0..a.width * a.height)
+            .map(|i| [(i * 7) as u8, (i / 3) as u8, 128, 255])
+            .collect(),
+        normal: true,
+        green_down: false,
+    };
+    for field in [
+        None,
+        Some(texsyn::Field::Swirl {
+            center: [20.0, 14.0],
+            radius: 30.0,
+            turns: 0.5,
+            scale: 1.0,
+        }),
+    ] {
+        let params = SynthParams {
+            width: 45,
+            height: 38,
+            origin: [-6, 11],
+            seed: 5,
+            field,
+            ..Default::default()
+        };
+        let maps = [map.clone()];
+        let whole = gpu.synthesize_with_maps(ctx(), &params, &maps).unwrap();
+        let mut calls = Vec::new();
+        let tiled = gpu
+            .synthesize_in_windows_sized(ctx(), &params, &maps, 16, &mut |d, n| calls.push((d, n)))
+            .unwrap();
+        assert_eq!(calls.last(), Some(&(9, 9)), "3 x 3 windows");
+        assert_eq!(tiled, whole, "field {:?}", params.field);
+        // The automatic window size fits this small output in one piece.
+        let auto = gpu
+            .synthesize_in_windows(ctx(), &params, &maps, |_, _| {})
+            .unwrap();
+        assert_eq!(auto, whole);
+    }
+    let periodic = SynthParams {
+        tileable_output: true,
+        ..Default::default()
+    };
+    assert!(gpu
+        .synthesize_in_windows(ctx(), &periodic, &[], |_, _| {})
+        .is_err());
+}

@@ -434,7 +434,23 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
     let ctx = GpuContext::headless()?;
     let device_time = t.elapsed();
     ui.info(format!("adapter: {}", ctx.describe()));
-    check_output_size(&ctx, width, height).map_err(cli_hint(args.tileable_output))?;
+    // An output larger than the device takes in one piece is synthesized in windows and
+    // assembled (the same bytes); a periodic or magnified one cannot be split.
+    let mut windowed = false;
+    if let Err(e) = check_output_size(&ctx, width, height) {
+        if args.tileable_output || args.magnify.is_some() {
+            return Err(cli_hint(args.tileable_output)(e).into());
+        }
+        windowed = true;
+    }
+    if windowed && width as usize * height as usize > texsyn::gpu::synth::MAX_WINDOWED_PIXELS {
+        return Err(fail(format!(
+            "--size {width}x{height}: outputs larger than the device takes in one piece are \
+             assembled in memory, at most {} Mpixel (16384x16384); synthesize parts of it \
+             with --window X,Y and a smaller --size",
+            texsyn::gpu::synth::MAX_WINDOWED_PIXELS >> 20
+        )));
+    }
 
     source.check_fits(&ctx, args.k.unwrap_or(AnalysisOptions::default().k))?;
     let (analysis, from_file, analysis_time) = match source {
@@ -499,9 +515,12 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
     let t = Instant::now();
     let synthesizer = GpuSynthesizer::new(&ctx, Arc::new(analysis))?;
     let upload_time = t.elapsed();
+    // The library's check covers the whole pyramid (the one above, the finest level).
+    windowed |= !args.tileable_output && args.magnify.is_none() && !synthesizer.fits(&ctx, &params);
     // Outputs of several megapixels take seconds (minutes on a CPU device): report each
-    // level, at most once a second. Smaller ones keep their single submission.
-    if !ui.quiet && width as u64 * height as u64 >= LONG_SYNTHESIS_PIXELS {
+    // level, at most once a second (each window, when in windows). Smaller ones keep
+    // their single submission.
+    if !ui.quiet && !windowed && width as u64 * height as u64 >= LONG_SYNTHESIS_PIXELS {
         let (start, mut last) = (Instant::now(), None::<Instant>);
         synthesizer.set_progress(Some(Box::new(move |done, total| {
             if last.is_none_or(|t| t.elapsed().as_secs_f32() >= 1.0) {
@@ -563,7 +582,7 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
             readback,
             write: t.elapsed(),
         };
-    } else if args.coords_out.is_some() || !extra.is_empty() {
+    } else if args.coords_out.is_some() || !extra.is_empty() || windowed {
         // Coordinates and maps come back with the synthesis, in one go: report the
         // two together. With --magnify the colours and maps are magnified, the
         // coordinates are one per pixel before magnification (analysed exemplar).
@@ -581,6 +600,22 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
                     m.colors,
                     m.maps,
                 )
+            }
+            None if windowed => {
+                let start = Instant::now();
+                let (s, map_pixels) =
+                    synthesizer.synthesize_in_windows(&ctx, &params, &maps, |done, total| {
+                        ui.progress(format!(
+                            "synthesizing {width}x{height} in windows: {done}/{total} done ({})",
+                            fmt_duration(start.elapsed())
+                        ))
+                    })?;
+                // Float coordinates only when written (2 GiB at 16384x16384).
+                let coords = match args.coords_out {
+                    Some(_) => s.coords_f32(),
+                    None => Vec::new(),
+                };
+                (coords, width, height, s.colors, map_pixels)
             }
             None => {
                 let (s, map_pixels) = synthesizer
