@@ -253,9 +253,13 @@ impl Field {
                 ]
             }
             Field::Map(m) => {
-                let i = (x.round().clamp(0.0, m.width as f64 - 1.0)) as usize;
-                let j = (y.round().clamp(0.0, m.height as f64 - 1.0)) as usize;
-                m.jacobians[j * m.width as usize + i]
+                // `validate` refuses empty or short maps; unvalidated ones read identity.
+                let i = (x.round().clamp(0.0, m.width.max(1) as f64 - 1.0)) as usize;
+                let j = (y.round().clamp(0.0, m.height.max(1) as f64 - 1.0)) as usize;
+                m.jacobians
+                    .get(j * m.width as usize + i)
+                    .copied()
+                    .unwrap_or([[1.0, 0.0], [0.0, 1.0]])
             }
         }
     }
@@ -334,6 +338,9 @@ impl Field {
                 }
             }
             Field::Map(m) => {
+                if m.width == 0 || m.height == 0 {
+                    return bad("map: it has no pixels (width and height must be at least 1)");
+                }
                 if m.jacobians.len() != m.width as usize * m.height as usize {
                     return bad("map: size does not match its data");
                 }

@@ -75,11 +75,23 @@ Velocity fields (pixels per unit time; a frame moves the texture by velocity * d
                            16-bit image), or an EXR's first two channels as pixels directly;
                            must have the output's size";
 
+/// The most pixels [`Flow::sample`] fills (16384 x 16384).
+pub const MAX_SAMPLED_PIXELS: usize = 1 << 28;
+
 impl Flow {
     /// Velocities of every pixel of a `width` x `height` output at time `t`.
     pub fn sample(&self, width: u32, height: u32, t: f32) -> Result<Vec<[f32; 2]>> {
         let (w, h) = (width as f32, height as f32);
-        let n = width as usize * height as usize;
+        // One velocity per pixel is allocated: refuse what no device synthesizes.
+        let n = (width as usize)
+            .checked_mul(height as usize)
+            .filter(|&n| n <= MAX_SAMPLED_PIXELS)
+            .ok_or_else(|| {
+                Error::InvalidParameter(format!(
+                    "velocity field of {width}x{height}: at most {} Mpixel",
+                    MAX_SAMPLED_PIXELS >> 20
+                ))
+            })?;
         let at = |f: &dyn Fn(f32, f32) -> [f32; 2]| {
             let mut out = Vec::with_capacity(n);
             for y in 0..height {
@@ -123,6 +135,12 @@ impl Flow {
                         "velocity field is {mw}x{mh}; the output is {width}x{height}"
                     )));
                 }
+                if data.len() != n {
+                    return Err(Error::InvalidParameter(format!(
+                        "velocity field of {mw}x{mh} holds {} velocities",
+                        data.len()
+                    )));
+                }
                 data.as_ref().clone()
             }
         })
@@ -137,7 +155,19 @@ impl Flow {
             Flow::Vortex { cx, cy, omega } => finite(&[*cx, *cy, *omega]),
             Flow::Source { cx, cy, strength } => finite(&[*cx, *cy, *strength]),
             Flow::Gusts { speed, turn } => finite(&[*speed, *turn]),
-            Flow::Map { data, .. } => data.iter().all(|v| finite(v)),
+            Flow::Map {
+                width,
+                height,
+                data,
+            } => {
+                if data.len() != *width as usize * *height as usize {
+                    return Err(Error::InvalidParameter(format!(
+                        "velocity field of {width}x{height} holds {} velocities",
+                        data.len()
+                    )));
+                }
+                data.iter().all(|v| finite(v))
+            }
         };
         // Centres are fractions of the output size (unlike `--field vortex`, in pixels):
         // one far outside is almost surely pixels given by mistake.

@@ -302,6 +302,11 @@ impl FloatImage {
     /// A `width x height` image repeating this one periodically (a "tiled copy").
     pub fn tiled(&self, width: u32, height: u32) -> Result<Self> {
         self.validate()?;
+        if width == 0 || height == 0 || width as u64 * height as u64 > 1 << 28 {
+            return Err(invalid(format!(
+                "tiled copy of {width}x{height}: give 1 to 2^28 pixels"
+            )));
+        }
         let c = self.channels as usize;
         let (w, h) = (self.width as usize, self.height as usize);
         let mut data = Vec::with_capacity(width as usize * height as usize * c);
@@ -1189,6 +1194,10 @@ pub fn feature_breakage(
             coords.len()
         )));
     }
+    if mask.width == 0 || mask.height == 0 {
+        return Err(invalid("the feature mask is empty"));
+    }
+    mask.check_size(mask.width, mask.height)?;
     let (ew, eh) = (mask.width as i64, mask.height as i64);
     let mut out = Vec::with_capacity(w * h);
     for c in coords {
@@ -1510,6 +1519,10 @@ pub fn jacobian_fidelity(
             coords.len()
         )));
     }
+    field.validate()?;
+    if exemplar_size[0] == 0 || exemplar_size[1] == 0 {
+        return Err(invalid("the exemplar size must be at least 1x1"));
+    }
     let ex = [exemplar_size[0] as f64, exemplar_size[1] as f64];
     let wrap = |d: f64, n: f64| d - n * (d / n).round();
     let mut errors_all = 0usize;
@@ -1631,6 +1644,7 @@ pub fn wrap_seam_ratio(image: &FloatImage) -> Result<f64> {
         image.height as usize,
         image.channels as usize,
     );
+    image.validate()?;
     if w < 2 || h < 2 {
         return Err(invalid("the image must be at least 2x2"));
     }
@@ -1817,6 +1831,29 @@ impl TemporalFigures {
     /// The next frame, with the displacement (pixels) that carried the previous frame to
     /// it (ignored for the first frame).
     pub fn push(&mut self, frame: FloatImage, displacement: &[[f32; 2]]) -> Result<()> {
+        frame.validate()?;
+        if let Some(prev) = &self.prev {
+            if (prev.width, prev.height, prev.channels)
+                != (frame.width, frame.height, frame.channels)
+            {
+                return Err(invalid(format!(
+                    "frame of {}x{}x{} after one of {}x{}x{}: the frames must all have one size",
+                    frame.width,
+                    frame.height,
+                    frame.channels,
+                    prev.width,
+                    prev.height,
+                    prev.channels
+                )));
+            }
+            let n = frame.width as usize * frame.height as usize;
+            if !displacement.is_empty() && displacement.len() != n {
+                return Err(invalid(format!(
+                    "{} displacements for {n} pixels",
+                    displacement.len()
+                )));
+            }
+        }
         let t = match &self.prev {
             None => 0,
             Some(_) => self.prev_index + 1,

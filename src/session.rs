@@ -265,6 +265,7 @@ impl SessionBuilder {
             }
         };
         // Validate the parameters before uploading.
+        analysis.validate()?;
         crate::passes::SynthPlan::new(&analysis, &self.params)?;
         let synthesizer = Arc::new(GpuSynthesizer::new(&context, Arc::new(analysis))?);
         Ok(Session {

@@ -121,6 +121,7 @@ impl FeatureMask {
     /// as [`crate::image_io::downsample_exemplar`] crops): a pixel is a feature when at
     /// least half of its block is. For `--magnify`, whose mask is given at full size.
     pub fn downsample(&self, factor: u32) -> Result<Self> {
+        self.check_size(self.width, self.height)?;
         let f = factor.max(1) as usize;
         let (w, h) = (self.width as usize / f, self.height as usize / f);
         let mut inside = Vec::with_capacity(w * h);
@@ -161,6 +162,13 @@ impl FeatureMask {
                 self.name(),
                 self.width,
                 self.height
+            )));
+        }
+        if self.inside.len() != width as usize * height as usize {
+            return Err(Error::InvalidParameter(format!(
+                "{}: {} flags for {width}x{height} pixels",
+                self.name(),
+                self.inside.len()
             )));
         }
         Ok(())

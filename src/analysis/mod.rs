@@ -44,13 +44,23 @@ pub struct Exemplar {
     pub colors: Vec<[u8; 4]>,
 }
 
+/// `width * height`, refusing sizes whose per-channel buffers could not be addressed.
+fn pixel_count(width: u32, height: u32) -> Result<usize> {
+    (width as usize)
+        .checked_mul(height as usize)
+        .filter(|&n| n <= usize::MAX / 16)
+        .ok_or_else(|| {
+            Error::InvalidParameter(format!("exemplar: {width}x{height} pixels is too large"))
+        })
+}
+
 impl Exemplar {
     /// An exemplar from 8-bit RGBA pixels (row-major, 4 bytes a pixel, sRGB-encoded as
     /// images usually are; alpha is ignored): 3 channels. For grey or 16-bit/float data,
     /// build an `image::DynamicImage` and use [`crate::image_io::exemplar_from_image`].
     /// Errors: a buffer of the wrong length, or a size below [`MIN_EXEMPLAR_SIZE`].
     pub fn from_rgba8(width: u32, height: u32, rgba: &[u8]) -> Result<Exemplar> {
-        let n = width as usize * height as usize;
+        let n = pixel_count(width, height)?;
         if rgba.len() != n * 4 {
             return Err(Error::InvalidParameter(format!(
                 "exemplar: {} bytes given for {width}x{height} RGBA8 pixels ({} expected)",
@@ -80,7 +90,7 @@ impl Exemplar {
     /// [0, 1]); [`analyze`] calls it, so a hand-built exemplar fails with a clear error.
     pub fn check(&self) -> Result<()> {
         check_exemplar_size(self.width, self.height)?;
-        let n = self.width as usize * self.height as usize;
+        let n = pixel_count(self.width, self.height)?;
         if self.channels != 1 && self.channels != 3 {
             return Err(Error::InvalidParameter(format!(
                 "exemplar: {} channels; it must have 1 (grey) or 3 (RGB)",

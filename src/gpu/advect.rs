@@ -62,6 +62,8 @@ impl Advection {
         let params = Self::anisometric(params);
         options.check()?;
         let plan = SynthPlan::new(synthesizer.analysis(), &params)?;
+        // The synthesis of frame 0 has the same limits (texture sides, buffers).
+        synthesizer.check_output(ctx, &plan)?;
         let n_coords = plan.coord_count + plan.flag_count();
         let pixels = params.width as u64 * params.height as u64;
         let max = ctx.limits().max_storage_buffer_binding_size;
@@ -405,9 +407,15 @@ impl Advection {
                         binding: 0,
                         resource: params.as_entire_binding(),
                     },
+                    // Only the pixels' velocities: a larger buffer may exceed the
+                    // binding limit, and the rest is not read.
                     wgpu::BindGroupEntry {
                         binding: 1,
-                        resource: velocity.as_entire_binding(),
+                        resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                            buffer: velocity,
+                            offset: 0,
+                            size: std::num::NonZeroU64::new(n * 8),
+                        }),
                     },
                     wgpu::BindGroupEntry {
                         binding: 2,

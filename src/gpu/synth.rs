@@ -563,6 +563,7 @@ impl GpuSynthesizer {
     /// exemplar tables exceed the device's buffer limits.
     pub fn new(ctx: &GpuContext, analysis: Arc<Analysis>) -> Result<Self> {
         let a = &*analysis;
+        a.validate()?;
         check_exemplar_fits(ctx, a.width, a.height, a.k)?;
         let px = a.width as u64 * a.height as u64;
         let levels = a.levels.len() as u64;
@@ -636,7 +637,7 @@ impl GpuSynthesizer {
     }
 
     /// Checks an output size against the device limits before any work is recorded.
-    fn check_output(&self, ctx: &GpuContext, plan: &SynthPlan) -> Result<()> {
+    pub(crate) fn check_output(&self, ctx: &GpuContext, plan: &SynthPlan) -> Result<()> {
         let limits = ctx.limits();
         let p = &plan.params;
         let max_dim = limits.max_texture_dimension_2d;
@@ -1146,6 +1147,12 @@ impl GpuSynthesizer {
         side: u32,
         progress: &mut dyn FnMut(usize, usize),
     ) -> Result<(Synthesis, Vec<Vec<[u8; 4]>>)> {
+        if params.width == 0 || params.height == 0 || side == 0 {
+            return Err(Error::InvalidParameter(format!(
+                "output {}x{} in windows of {side}: sizes must be at least 1",
+                params.width, params.height
+            )));
+        }
         let (w, h) = (params.width as usize, params.height as usize);
         let pixels = w
             .checked_mul(h)
@@ -1258,8 +1265,11 @@ impl GpuSynthesizer {
                 a.height * factor
             )));
         }
-        let (w, h) = (params.width * factor, params.height * factor);
         let max_dim = ctx.limits().max_texture_dimension_2d;
+        let (w, h) = (
+            params.width.saturating_mul(factor),
+            params.height.saturating_mul(factor),
+        );
         if w > max_dim || h > max_dim {
             return Err(too_large(
                 "magnified output",
@@ -1302,7 +1312,32 @@ impl GpuSynthesizer {
         self.check_output(ctx, &plan)?;
         let schedule = plan.schedule(&self.analysis);
         let (w, h) = (params.width, params.height);
-        let (bw, bh) = (w * f, h * f);
+        let (bw, bh) = (w.saturating_mul(f), h.saturating_mul(f));
+        // Everything comes back in one read-back buffer: check it before any work.
+        {
+            let pitch = |w: u32| (w as u64 * 4).next_multiple_of(256);
+            let fin = plan
+                .levels
+                .last()
+                .map_or(0, |l| l.size[0] as u64 * l.size[1] as u64);
+            let count = maps.len() as u64 + magnify.is_some() as u64;
+            let need = (pitch(w) * h as u64 + fin * 8).next_multiple_of(256)
+                + pitch(bw) * bh as u64 * count;
+            let max = ctx.limits().max_buffer_size;
+            if need > max {
+                return Err(too_large(
+                    "output",
+                    w,
+                    h,
+                    format!(
+                        "with {count} map(s) its read-back needs {} MiB in one buffer, the device allows {} MiB",
+                        need >> 20,
+                        max >> 20
+                    ),
+                    "resynthesize fewer maps at once, or smaller windows (SynthParams::origin)",
+                ));
+            }
+        }
         let texture = ctx.scoped(|| self.output_texture(ctx, w, h))?;
         let view = texture.create_view(&Default::default());
         // Sources of the map passes: the high-resolution colours first when magnifying.

@@ -153,6 +153,7 @@ pub fn run_cpu_frame(
 
 /// The whole synthesis on the CPU (the reference the GPU is tested against).
 pub fn synthesize_cpu(analysis: &Analysis, params: &SynthParams) -> Result<Synthesis> {
+    analysis.validate()?;
     let plan = SynthPlan::new(analysis, params)?;
     let schedule = plan.schedule(analysis);
     let mut coords = vec![[0i32; 2]; plan.coord_count as usize];

@@ -96,6 +96,15 @@ pub const NONE: u32 = u32::MAX;
 
 /// Builds the atlas per `opts`.
 pub fn build_atlas(mesh: &Mesh, opts: &AtlasOptions) -> Result<Atlas> {
+    mesh.check()?;
+    if mesh.normals.len() != mesh.positions.len() {
+        return Err(Error::InvalidParameter(format!(
+            "mesh has {} normals for {} positions; Mesh::validate_and_repair computes the \
+             missing ones",
+            mesh.normals.len(),
+            mesh.positions.len()
+        )));
+    }
     if !(8..=16384).contains(&opts.size) {
         return Err(Error::InvalidParameter(format!(
             "atlas size {}: use 8 to 16384 texels",

@@ -148,20 +148,10 @@ impl Mesh {
         edges
     }
 
-    /// Checks the mesh and repairs what can be repaired, in place.
-    ///
-    /// Errors (nothing is changed): no triangles, a vertex index out of range, a NaN or
-    /// infinite position, normal, uv or tangent, `uvs` or `tangents` whose length differs
-    /// from `positions`, every triangle degenerate.
-    ///
-    /// Repairs (reported): triangles with a repeated index or with an area below
-    /// `1e-12 * (bounding-box diagonal)^2` are dropped; when `normals` does not have one
-    /// entry per position, area-weighted unit vertex normals are computed for all
-    /// vertices (accumulated over vertices welded by exact position, so uv seams get no
-    /// normal seam); when only some normals are zero-length, those are computed the same
-    /// way and the others are kept (normalized). Edges shared by more than two triangles
-    /// (vertices welded by exact position) are counted and kept. Unused vertices stay.
-    pub fn validate_and_repair(&mut self) -> Result<RepairReport> {
+    /// The checks of [`Self::validate_and_repair`] that need no repair: triangles exist
+    /// and index existing vertices, every value is finite, `uvs` and `tangents` have one
+    /// entry per position. Functions that take a [`Mesh`] call it first.
+    pub fn check(&self) -> Result<()> {
         if self.triangles.is_empty() {
             return Err(invalid("mesh has no triangles".into()));
         }
@@ -214,6 +204,25 @@ impl Mesh {
                 )));
             }
         }
+        Ok(())
+    }
+
+    /// Checks the mesh and repairs what can be repaired, in place.
+    ///
+    /// Errors (nothing is changed): no triangles, a vertex index out of range, a NaN or
+    /// infinite position, normal, uv or tangent, `uvs` or `tangents` whose length differs
+    /// from `positions`, every triangle degenerate.
+    ///
+    /// Repairs (reported): triangles with a repeated index or with an area below
+    /// `1e-12 * (bounding-box diagonal)^2` are dropped; when `normals` does not have one
+    /// entry per position, area-weighted unit vertex normals are computed for all
+    /// vertices (accumulated over vertices welded by exact position, so uv seams get no
+    /// normal seam); when only some normals are zero-length, those are computed the same
+    /// way and the others are kept (normalized). Edges shared by more than two triangles
+    /// (vertices welded by exact position) are counted and kept. Unused vertices stay.
+    pub fn validate_and_repair(&mut self) -> Result<RepairReport> {
+        self.check()?;
+        let n = self.positions.len();
 
         // Degenerate triangles. Areas in f64 so that the threshold is not lost in
         // single-precision rounding.

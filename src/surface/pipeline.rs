@@ -59,6 +59,12 @@ pub struct PrepareTimings {
 
 /// Atlas, tangent field and the maps of `levels` pyramid levels.
 pub fn prepare(mesh: &Mesh, levels: usize, opts: &SurfaceOptions) -> Result<PreparedSurface> {
+    // An analysis has at most one level per halving of a 2^16-texel side.
+    if !(1..=16).contains(&levels) {
+        return Err(Error::InvalidParameter(format!(
+            "{levels} pyramid levels: an analysis has 1 to 16"
+        )));
+    }
     let t = Instant::now();
     let atlas = build_atlas(mesh, &opts.atlas)?;
     let atlas_time = t.elapsed();

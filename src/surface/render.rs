@@ -200,6 +200,9 @@ pub fn shade(view_normal: Vec3) -> f32 {
     AMBIENT + (1.0 - AMBIENT) * view_normal.dot(l).max(0.0)
 }
 
+/// The most views [`render_views`] draws side by side.
+pub const MAX_VIEWS: u32 = 16;
+
 /// Render `mesh` textured with `texture` from `opts.views` cameras orbiting it (see
 /// [`orbit_cameras`]), into one image of the views side by side
 /// (`views * view_size` x `view_size`).
@@ -217,10 +220,11 @@ pub fn render_views(
     texture: &SurfaceTexture,
     opts: &RenderOptions,
 ) -> Result<image::RgbaImage> {
-    if opts.views == 0 {
-        return Err(Error::InvalidParameter(
-            "render: the number of views must be at least 1".into(),
-        ));
+    if !(1..=MAX_VIEWS).contains(&opts.views) {
+        return Err(Error::InvalidParameter(format!(
+            "render: {} views; give 1 to {MAX_VIEWS}",
+            opts.views
+        )));
     }
     let cameras = orbit_cameras(mesh, opts.views);
     render_cameras(

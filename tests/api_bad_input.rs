@@ -1,0 +1,189 @@
+//! The library's public API given inconsistent or extreme values (findings of the
+//! fifteenth session's API audit): each is a clear `texsyn::Error`, never a panic.
+
+mod common;
+
+use std::sync::{Arc, OnceLock};
+
+use texsyn::analysis::{analyze, Analysis, AnalysisOptions, Exemplar, FeatureMask};
+use texsyn::field::FieldMap;
+use texsyn::gpu::synth::GpuSynthesizer;
+use texsyn::gpu::GpuContext;
+use texsyn::quality::{FloatImage, TemporalFigures};
+use texsyn::surface::mesh::Mesh;
+use texsyn::{Field, Flow, SynthParams};
+
+fn ctx() -> &'static GpuContext {
+    static CTX: OnceLock<GpuContext> = OnceLock::new();
+    CTX.get_or_init(|| GpuContext::headless().expect("a Vulkan adapter (lavapipe)"))
+}
+
+fn analysis() -> Arc<Analysis> {
+    static A: OnceLock<Arc<Analysis>> = OnceLock::new();
+    A.get_or_init(|| {
+        Arc::new(
+            analyze(
+                &common::gravel_crop(32),
+                &AnalysisOptions::default(),
+                |_| {},
+            )
+            .unwrap(),
+        )
+    })
+    .clone()
+}
+
+#[test]
+fn hand_built_analyses_are_checked() {
+    let mut a = (*analysis()).clone();
+    a.levels.clear();
+    let e = GpuSynthesizer::new(ctx(), Arc::new(a.clone()))
+        .err()
+        .unwrap();
+    assert!(e.to_string().contains("levels"), "{e}");
+    let params = SynthParams {
+        width: 16,
+        height: 16,
+        ..Default::default()
+    };
+    assert!(texsyn::passes::synthesize_cpu(&a, &params).is_err());
+    let mut a = (*analysis()).clone();
+    a.levels[2].et.truncate(10);
+    assert!(a.validate().is_err());
+    let mut a = (*analysis()).clone();
+    a.colors.clear();
+    assert!(a.validate().is_err());
+    analysis().validate().unwrap();
+}
+
+#[test]
+fn inconsistent_maps_masks_and_sizes_are_errors() {
+    let empty = Field::Map(Arc::new(FieldMap {
+        width: 0,
+        height: 0,
+        jacobians: vec![],
+    }));
+    assert!(empty.validate().is_err());
+    // An unvalidated map reads identity instead of indexing out of bounds.
+    assert_eq!(empty.at(3.0, 4.0), [[1.0, 0.0], [0.0, 1.0]]);
+
+    let flow = Flow::Map {
+        width: 4,
+        height: 4,
+        data: Arc::new(vec![[0.0, 0.0]; 3]),
+    };
+    assert!(flow.validate().is_err());
+    assert!(flow.sample(4, 4, 0.0).is_err());
+    assert!(Flow::Uniform { vx: 1.0, vy: 0.0 }
+        .sample(u32::MAX, u32::MAX, 0.0)
+        .is_err());
+
+    let mask = FeatureMask {
+        width: 32,
+        height: 32,
+        inside: vec![true; 5],
+        source: None,
+    };
+    assert!(mask.check_size(32, 32).is_err());
+    assert!(mask.downsample(2).is_err());
+    assert!(Exemplar::from_rgba8(u32::MAX, u32::MAX, &[]).is_err());
+
+    let mut mesh = Mesh::cube(1.0, 1);
+    mesh.triangles.push([0, 1, 99_999]);
+    let e = texsyn::surface::atlas::build_atlas(
+        &mesh,
+        &texsyn::surface::atlas::AtlasOptions::for_size(64),
+    )
+    .err()
+    .unwrap();
+    assert!(e.to_string().contains("99999"), "{e}");
+
+    // Frames of another size in a temporal report.
+    let ex = FloatImage::new(16, 16, 1, vec![0.5; 256]).unwrap();
+    let mut figures = TemporalFigures::new(&ex, 1);
+    figures
+        .push(FloatImage::new(16, 16, 1, vec![0.5; 256]).unwrap(), &[])
+        .unwrap();
+    assert!(figures
+        .push(FloatImage::new(8, 8, 1, vec![0.5; 64]).unwrap(), &[])
+        .is_err());
+    assert!(ex.tiled(u32::MAX, u32::MAX).is_err());
+}
+
+#[test]
+fn gpu_entry_points_refuse_what_the_device_cannot_hold() {
+    let synth = Arc::new(GpuSynthesizer::new(ctx(), analysis()).unwrap());
+    // Windows of an empty output.
+    let empty = SynthParams {
+        width: 0,
+        height: 16,
+        ..Default::default()
+    };
+    assert!(synth
+        .synthesize_in_windows(ctx(), &empty, &[], |_, _| {})
+        .is_err());
+    // Advection wider than a texture may be: TooLarge before any allocation.
+    let wide = SynthParams {
+        width: ctx().limits().max_texture_dimension_2d + 1,
+        height: 1,
+        ..Default::default()
+    };
+    let e = texsyn::Advection::new(ctx(), synth.clone(), &wide, Default::default())
+        .err()
+        .unwrap();
+    assert!(matches!(e, texsyn::Error::TooLarge { .. }), "{e}");
+    // Magnifying a huge width overflows nothing.
+    let huge = SynthParams {
+        width: u32::MAX,
+        ..Default::default()
+    };
+    let a = analysis();
+    let hi = vec![[0u8; 4]; (a.width * a.height * 4) as usize];
+    assert!(synth
+        .synthesize_magnified(ctx(), &huge, &hi, a.width * 2, a.height * 2, 2)
+        .is_err());
+    // Too many views.
+    let rgba = vec![128u8; 8 * 8 * 4];
+    let opts = texsyn::surface::render::RenderOptions {
+        view_size: 32,
+        views: u32::MAX,
+        ..Default::default()
+    };
+    let mesh = Mesh::cube(1.0, 1);
+    assert!(texsyn::surface::render::render_views(
+        ctx(),
+        &mesh,
+        &texsyn::surface::render::SurfaceTexture::Color {
+            rgba: &rgba,
+            width: 8,
+            height: 8
+        },
+        &opts
+    )
+    .is_err());
+    ctx().take_uncaptured_errors().unwrap();
+}
+
+/// A velocity buffer larger than the output needs is valid (only the first w * h
+/// entries are read), and the caller's encoder stays usable.
+#[test]
+fn a_larger_velocity_buffer_is_read_in_part() {
+    let synth = Arc::new(GpuSynthesizer::new(ctx(), analysis()).unwrap());
+    let params = SynthParams {
+        width: 24,
+        height: 24,
+        ..Default::default()
+    };
+    let mut adv = texsyn::Advection::new(ctx(), synth, &params, Default::default()).unwrap();
+    let buffer = ctx().device.create_buffer(&wgpu::BufferDescriptor {
+        label: None,
+        size: 24 * 24 * 8 * 3,
+        usage: wgpu::BufferUsages::STORAGE,
+        mapped_at_creation: false,
+    });
+    let mut encoder = ctx().device.create_command_encoder(&Default::default());
+    adv.encode_step(ctx(), &mut encoder, &buffer, 1.0).unwrap();
+    ctx().queue.submit([encoder.finish()]);
+    ctx().wait_idle().unwrap();
+    ctx().take_uncaptured_errors().unwrap();
+}
