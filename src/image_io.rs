@@ -1141,6 +1141,12 @@ pub fn load_coords_exr(path: &Path) -> Result<(u32, u32, Vec<[i32; 2]>)> {
 /// the analysed exemplar of magnification, whose colours come from the full one.
 /// Returns the small exemplar and the full one's colours cropped to `factor` times it.
 pub fn downsample_exemplar(ex: &Exemplar, factor: u32) -> Result<(Exemplar, Vec<[u8; 4]>)> {
+    ex.check()?;
+    if !(1..=64).contains(&factor) {
+        return Err(Error::InvalidParameter(format!(
+            "downsampling factor {factor}: use 1 to 64"
+        )));
+    }
     let (w, h) = (ex.width / factor.max(1), ex.height / factor.max(1));
     if factor == 0
         || w < crate::analysis::MIN_EXEMPLAR_SIZE

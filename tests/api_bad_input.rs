@@ -187,3 +187,28 @@ fn a_larger_velocity_buffer_is_read_in_part() {
     ctx().wait_idle().unwrap();
     ctx().take_uncaptured_errors().unwrap();
 }
+
+/// A caller's device with downlevel limits gets a clear error, and the context stays
+/// usable for nothing else going wrong.
+#[test]
+fn a_downlevel_device_is_refused_clearly() {
+    let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
+        backends: wgpu::Backends::PRIMARY,
+        ..wgpu::InstanceDescriptor::new_without_display_handle()
+    });
+    let Ok(adapter) = pollster::block_on(instance.request_adapter(&Default::default())) else {
+        return; // The headless tests above need the adapter anyway.
+    };
+    let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+        required_limits: wgpu::Limits::downlevel_defaults(),
+        ..Default::default()
+    }))
+    .unwrap();
+    let ctx = GpuContext::from_device(device, queue);
+    let e = GpuSynthesizer::new(&ctx, analysis())
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(e.contains("storage buffers"), "{e}");
+    ctx.take_uncaptured_errors().unwrap();
+}

@@ -1627,6 +1627,18 @@ impl GpuSynthesizer {
 /// buffer limits (its per-level tables live in single storage buffers).
 pub fn check_exemplar_fits(ctx: &GpuContext, width: u32, height: u32, k: u32) -> Result<()> {
     let limits = ctx.limits();
+    // The passes bind 8 storage buffers and one storage texture (WebGPU's defaults;
+    // downlevel devices allow fewer).
+    if limits.max_storage_buffers_per_shader_stage < 8
+        || limits.max_storage_textures_per_shader_stage < 1
+    {
+        return Err(Error::Gpu(format!(
+            "the device allows {} storage buffers and {} storage textures per shader stage; \
+             texsyn needs 8 and 1: create the device with at least wgpu::Limits::default()",
+            limits.max_storage_buffers_per_shader_stage,
+            limits.max_storage_textures_per_shader_stage
+        )));
+    }
     let px = width as u64 * height as u64;
     let levels = crate::analysis::level_count(width, height) as u64 + 1;
     let table_bytes = px * levels * 16;
