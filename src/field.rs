@@ -381,14 +381,14 @@ pub fn quantize(m: &Mat2) -> [i32; 4] {
 
 /// Quantized Jacobians of a level's region: `origin`/`size` in level pixels, the level
 /// `2^steps` times coarser than the output. Pixel `p` samples the field at its centre in
-/// output coordinates, `(p + 0.5) * 2^steps - 0.5`.
+/// output coordinates, `(p + 0.5) * 2^steps - 0.5` (`steps` is at most 62).
 pub fn rasterize_region(
     field: &Field,
     origin: [i32; 2],
     size: [u32; 2],
     steps: u32,
 ) -> Vec<[i32; 4]> {
-    let f = (1u64 << steps) as f64;
+    let f = (1u64 << steps.min(62)) as f64;
     let w = size[0] as usize;
     // Rows in parallel (trigonometry and a 2x2 SVD per pixel: ~100 ns each).
     crate::analysis::par_ranges(size[1] as usize, 0, |rows| {

@@ -1132,8 +1132,12 @@ impl FeatureBreakage {
 }
 
 /// Share of the `true` pixels of a row-major `w x h` mask that lie in 8-connected
-/// components under `min` pixels (no wrap-around); 0 for a mask without features.
+/// components under `min` pixels (no wrap-around); 0 for a mask without features, NaN
+/// when `inside` does not hold `w * h` flags.
 pub fn fragment_fraction(inside: &[bool], w: usize, h: usize, min: usize) -> f64 {
+    if w.checked_mul(h) != Some(inside.len()) {
+        return f64::NAN; // not a w x h mask
+    }
     let mut seen = vec![false; inside.len()];
     let (mut total, mut small) = (0usize, 0usize);
     let mut stack = Vec::new();
@@ -1731,8 +1735,12 @@ fn mean(v: &[f64]) -> f64 {
     }
 }
 
-/// Mean squared Laplacian of a grey image (interior pixels).
+/// Mean squared Laplacian of a grey image (interior pixels); NaN for an image whose fields
+/// disagree.
 pub fn high_frequency_energy(img: &FloatImage) -> f64 {
+    if img.validate().is_err() {
+        return f64::NAN;
+    }
     let g = img.to_grey();
     let (w, h) = (g.width as usize, g.height as usize);
     if w < 3 || h < 3 {
@@ -1752,8 +1760,16 @@ pub fn high_frequency_energy(img: &FloatImage) -> f64 {
 /// Mean absolute difference between `cur` and `prev` sampled bilinearly at `p - d(p)`
 /// (grey, 0-1), over the pixels at least `margin` from the border whose source lies
 /// inside `prev`; NaN when there is no such pixel (the flow moved everything out of
-/// view), which the means of [`TemporalReport`] skip.
+/// view) or when the two are not valid images of one size, which the means of
+/// [`TemporalReport`] skip.
 pub fn warped_difference(prev: &FloatImage, cur: &FloatImage, d: &[[f32; 2]], margin: u32) -> f64 {
+    // Frames that are not two valid images of one size have no difference: NaN.
+    if prev.validate().is_err()
+        || cur.validate().is_err()
+        || (prev.width, prev.height) != (cur.width, cur.height)
+    {
+        return f64::NAN;
+    }
     let (a, b) = (prev.to_grey(), cur.to_grey());
     let (w, h) = (b.width as usize, b.height as usize);
     let m = margin as usize;

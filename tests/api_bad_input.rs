@@ -212,3 +212,22 @@ fn a_downlevel_device_is_refused_clearly() {
     assert!(e.contains("storage buffers"), "{e}");
     ctx.take_uncaptured_errors().unwrap();
 }
+
+/// Helpers that return a figure rather than a `Result` answer NaN for inconsistent input.
+#[test]
+fn figure_helpers_answer_nan_for_inconsistent_input() {
+    use texsyn::quality::{fragment_fraction, high_frequency_energy, warped_difference};
+    let a = FloatImage::new(8, 8, 1, vec![0.5; 64]).unwrap();
+    let b = FloatImage::new(4, 4, 1, vec![0.5; 16]).unwrap();
+    assert!(warped_difference(&a, &b, &[], 0).is_nan());
+    assert!(fragment_fraction(&[true; 5], 4, 4, 20).is_nan());
+    let broken = FloatImage {
+        width: 8,
+        height: 8,
+        channels: 1,
+        data: vec![0.5; 3],
+    };
+    assert!(high_frequency_energy(&broken).is_nan());
+    assert_eq!(warped_difference(&a, &a, &[], 0), 0.0);
+    let _ = Mesh::uv_sphere(1.0, u32::MAX, 3); // clamped, not an overflow
+}

@@ -311,10 +311,10 @@ impl Mesh {
     /// A UV sphere centred at the origin, poles on the y axis: `segments` vertices
     /// around each of the `rings - 1` latitude rings (no duplicated seam column), one
     /// vertex at each pole with a fan of triangles. Normals are exact (position /
-    /// radius); no uvs. `segments` is at least 3 and `rings` at least 2.
+    /// radius); no uvs. `segments` is clamped to 3..=4096 and `rings` to 2..=4096.
     pub fn uv_sphere(radius: f32, segments: u32, rings: u32) -> Mesh {
-        let segments = segments.max(3);
-        let rings = rings.max(2);
+        let segments = segments.clamp(3, 4096);
+        let rings = rings.clamp(2, 4096);
         let mut normals = Vec::with_capacity((segments * (rings - 1) + 2) as usize);
         normals.push(Vec3::Y);
         for i in 1..rings {
@@ -390,11 +390,11 @@ impl Mesh {
     }
 
     /// An axis-aligned cube of edge `size` centred at the origin, each face split into
-    /// `subdivisions` x `subdivisions` quads (at least 1). The 6 faces have their own
+    /// `subdivisions` x `subdivisions` quads (1 to 2048). The 6 faces have their own
     /// vertices (flat normals; they connect through [`Mesh::triangle_adjacency`], which
     /// welds by position): a closed surface made of many charts. No uvs.
     pub fn cube(size: f32, subdivisions: u32) -> Mesh {
-        let n = subdivisions.max(1);
+        let n = subdivisions.clamp(1, 2048);
         let h = 0.5 * size;
         // (normal, u, v) with u x v = normal, so quads (u, v) are counter-clockwise.
         let faces = [

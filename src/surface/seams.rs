@@ -21,9 +21,18 @@ pub struct SeamReport {
     pub samples: usize,
 }
 
-/// Measures `colors` (RGBA8, the atlas' finest level, row-major).
+/// Measures `colors` (RGBA8, the atlas' finest level, row-major). Colours of another
+/// count than the atlas' texels measure nothing: every figure NaN, no edges.
 pub fn seam_report(atlas: &Atlas, colors: &[[u8; 4]]) -> SeamReport {
     let size = atlas.size as usize;
+    if colors.len() != size * size {
+        return SeamReport {
+            seam: f64::NAN,
+            interior: f64::NAN,
+            ratio: f64::NAN,
+            ..SeamReport::default()
+        };
+    }
     let ids = rasterize(atlas, 0);
     let chart_at = |i: usize| {
         if ids[i] == NONE {
