@@ -7,8 +7,15 @@
 // while re-upsampling such strips every frame broke them apart (measured: brick under a
 // uniform sub-pixel flow, energy 2.6x after 60 frames, now 0.6x). A pixel is flagged
 // when |J_obs - J|_F > c, i.e. the squared errors exceed params.distortion_max =
-// (c h 256)^2. Reads the advected coordinates from the scratch region (flag_base) and
-// writes them back to the level, flagged pixels as FLAGGED for the upsample pass.
+// (c h 256)^2, and also when both of its axes lie between two seams: a pixel that
+// continues no neighbour on either axis belongs to no patch, and left alone such pixels
+// spread under a turning flow. The correction then settles them on the exemplar's
+// flattest content (the best match for an incoherent neighbourhood), and the texture
+// blurs. Measured (README): the grass's sharpness fell from 1.25 to 0.41 over a 300-frame
+// vortex, and to 1.05 when they are flagged. params.distortion_max = 0xffffffff flags
+// nothing (the coarsest advected level, which has no coarser level to upsample from).
+// Reads the advected coordinates from the scratch region (flag_base) and writes them
+// back to the level, flagged pixels as FLAGGED for the upsample pass.
 #include "shared/common.wgsl"
 #include "shared/aniso.wgsl"
 
@@ -30,6 +37,9 @@ fn advected(q: vec2<i32>) -> vec2<i32> {
     return coords[params.flag_base + region_index(q) - params.coord_base];
 }
 
+// axis_err's value for an axis with a seam on both sides (step errors stay below 2^30).
+const BETWEEN_SEAMS: u32 = 0xffffffffu;
+
 fn axis_err(q: vec2<i32>, s: vec2<i32>, e: vec2<i32>, expected: vec2<i32>) -> u32 {
     let fwd = advected(q + e) - s - expected;
     let bwd = s - advected(q - e) - expected;
@@ -37,7 +47,7 @@ fn axis_err(q: vec2<i32>, s: vec2<i32>, e: vec2<i32>, expected: vec2<i32>) -> u3
     // (h 256)^2, a whole pixel step (h capped: step_err is below 2^30 anyway).
     let hc = min(params.spacing, 128);
     let seam = u32(hc * hc) << 16u;
-    return select(err, 0u, err > seam);
+    return select(err, BETWEEN_SEAMS, err > seam);
 }
 
 @compute @workgroup_size(8, 8, 1)
@@ -56,7 +66,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         let h = params.spacing;
         let ex = axis_err(q, s, vec2<i32>(1, 0), scaled_jd(h, j, vec2<i32>(1, 0)));
         let ey = axis_err(q, s, vec2<i32>(0, 1), scaled_jd(h, j, vec2<i32>(0, 1)));
-        flag = ex + ey > params.distortion_max;
+        let isolated = ex == BETWEEN_SEAMS && ey == BETWEEN_SEAMS;
+        let err = select(ex, 0u, ex == BETWEEN_SEAMS) + select(ey, 0u, ey == BETWEEN_SEAMS);
+        flag = params.distortion_max != 0xffffffffu && (isolated || err > params.distortion_max);
     }
     coords[i] = select(s, vec2<i32>(FLAGGED), flag);
 }

@@ -65,7 +65,8 @@ pub struct AdvectArgs {
 
     /// Distortion threshold |J_obs - J|_F beyond which a pixel is re-synthesized (steps
     /// off by a whole pixel on both sides are patch seams, not distortion, so thresholds
-    /// of about 1 and more re-synthesize almost nothing)
+    /// of about 1 and more re-synthesize little: only the pixels with seams on both sides
+    /// of both axes, which continue no patch and are re-synthesized at any threshold)
     #[arg(long, default_value_t = AdvectOptions::default().threshold)]
     pub threshold: f32,
 

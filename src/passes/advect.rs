@@ -113,27 +113,23 @@ pub fn distortion(p: &PassParams, coords: &mut [[i32; 2]], jac: &[[i32; 4]], sur
             }
             let (j, h) = (jac[base + t], p.spacing);
             let at = |dx: i32, dy: i32| coords[scratch + region_index([x + dx, y + dy], p)];
+            // None: a seam on both sides (a strip between two seams, see distortion.wgsl).
             let axis = |e: [i32; 2]| {
                 let ex = scaled_jd(h, j, e);
                 let f = at(e[0], e[1]);
                 let b = at(-e[0], -e[1]);
                 let fwd = [f[0] - s[0] - ex[0], f[1] - s[1] - ex[1]];
                 let bwd = [s[0] - b[0] - ex[0], s[1] - b[1] - ex[1]];
-                // Off by a whole step on both sides: a strip between two seams, not
-                // flow distortion (see distortion.wgsl).
                 let err = step_err(p, fwd).min(step_err(p, bwd));
-                if err > seam_err(p.spacing) {
-                    0
-                } else {
-                    err
-                }
+                (err <= seam_err(p.spacing)).then_some(err)
             };
-            let err = axis([1, 0]) + axis([0, 1]);
-            out.push(if err > p.distortion_max {
-                [FLAGGED; 2]
-            } else {
-                s
-            });
+            let (ex, ey) = (axis([1, 0]), axis([0, 1]));
+            // A pixel between seams on both axes continues no neighbour: it is upsampled
+            // again too (else such pixels spread and blur the texture, distortion.wgsl).
+            let isolated = ex.is_none() && ey.is_none();
+            let err = ex.unwrap_or(0) + ey.unwrap_or(0);
+            let flag = p.distortion_max != u32::MAX && (isolated || err > p.distortion_max);
+            out.push(if flag { [FLAGGED; 2] } else { s });
         }
     }
     coords[base..base + out.len()].copy_from_slice(&out);
@@ -162,7 +158,9 @@ pub struct AdvectOptions {
     /// Distortion threshold `c` on `|J_obs - J|_F` (Jacobian units): pixels beyond it
     /// are upsampled again from the coarser level. A step off by a whole pixel on both
     /// sides is a patch seam and does not count, so `c` of about 1 or more flags
-    /// almost nothing.
+    /// little: only the pixels with a seam on both sides of both axes, which continue no
+    /// patch and are upsampled again at any `c` (left alone, they spread under a turning
+    /// flow and blur the texture; see `distortion.wgsl`).
     pub threshold: f32,
     /// Correction passes per advected level and frame (the advected coordinates are
     /// already nearly right: one pass keeps the cost at a fraction of a synthesis).
@@ -356,6 +354,38 @@ mod tests {
             })
             .collect();
         assert!(flags(&mut coords, 0.5).iter().all(|&f| f == 0));
+    }
+
+    #[test]
+    fn a_pixel_between_seams_on_both_axes_is_flagged() {
+        // Identity coordinates, but pixel (3, 4) comes from elsewhere in the exemplar:
+        // it continues no neighbour, whatever the threshold; its neighbours, each with a
+        // seam on one side only, are left alone.
+        let coords: Vec<[i32; 2]> = (0..64)
+            .map(|i| {
+                let (x, y) = (i % 8, i / 8);
+                let jump = if (x, y) == (3, 4) { 40 } else { 0 };
+                [(x + jump) << 8, (y + jump) << 8]
+            })
+            .collect();
+        for c in [0.5, 100.0] {
+            let f = flags(&mut coords.clone(), c);
+            assert_eq!(f.iter().sum::<i32>(), 1, "threshold {c}");
+            assert_eq!(f[4 * 8 + 3], 1);
+        }
+        // The coarsest advected level flags nothing (no coarser level to upsample from).
+        let p = PassParams {
+            ex_size: [4096, 4096],
+            size: [8, 8],
+            spacing: 1,
+            flag_base: 64,
+            distortion_max: u32::MAX,
+            ..Default::default()
+        };
+        let mut c = coords.clone();
+        c.extend_from_within(0..64);
+        distortion(&p, &mut c, &vec![[1024, 0, 0, 1024]; 64], &[]);
+        assert_eq!(&c[..64], &coords[..]);
     }
 
     #[test]
