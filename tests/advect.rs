@@ -25,6 +25,15 @@ fn setup(size: u32) -> (Arc<Analysis>, Arc<GpuSynthesizer>, Exemplar) {
     (a, s, ex)
 }
 
+/// A shipped exemplar (`assets/NAME.png`), analysed, with its synthesizer.
+fn asset(name: &str) -> (Exemplar, Arc<GpuSynthesizer>) {
+    let path = format!("{}/assets/{name}.png", env!("CARGO_MANIFEST_DIR"));
+    let ex = texsyn::image_io::load_exemplar(path.as_ref()).unwrap();
+    let a = Arc::new(analyze(&ex, &AnalysisOptions::default(), |_| {}).unwrap());
+    let s = Arc::new(GpuSynthesizer::new(ctx(), a).unwrap());
+    (ex, s)
+}
+
 fn grey(rgba: &[u8], w: u32, h: u32) -> FloatImage {
     FloatImage::new(
         w,
@@ -237,9 +246,7 @@ fn uniform_flow_of_whole_pixels_translates_exactly() {
 /// distortion and re-upsampled every frame, which broke them apart.
 #[test]
 fn sub_pixel_uniform_flow_keeps_thin_features() {
-    let ex = texsyn::image_io::load_exemplar("assets/brick.png".as_ref()).unwrap();
-    let a = Arc::new(analyze(&ex, &AnalysisOptions::default(), |_| {}).unwrap());
-    let synth = Arc::new(GpuSynthesizer::new(ctx(), a).unwrap());
+    let (ex, synth) = asset("brick");
     let (w, h) = (96u32, 96u32);
     let params = SynthParams {
         width: w,
@@ -340,10 +347,7 @@ fn vortex_keeps_the_texture_for_300_frames() {
 /// high-frequency energy after 300 frames; now 0.97.
 #[test]
 fn vortex_does_not_blur_grass() {
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/grass.png");
-    let ex = texsyn::image_io::load_exemplar(path.as_ref()).unwrap();
-    let a = Arc::new(analyze(&ex, &AnalysisOptions::default(), |_| {}).unwrap());
-    let synth = Arc::new(GpuSynthesizer::new(ctx(), a).unwrap());
+    let (_, synth) = asset("grass");
     let (w, h) = (96u32, 96u32);
     let params = SynthParams {
         width: w,
