@@ -13,7 +13,7 @@
 // flattest content (the best match for an incoherent neighbourhood), and the texture
 // blurs. Measured (README): the grass's sharpness fell from 1.25 to 0.41 over a 300-frame
 // vortex, and to 1.05 when they are flagged. params.distortion_max = 0xffffffff flags
-// nothing (the coarsest advected level, which has no coarser level to upsample from).
+// nothing (level 0, the pyramid's coarsest, which has nothing to upsample from).
 // Reads the advected coordinates from the scratch region (flag_base) and writes them
 // back to the level, flagged pixels as FLAGGED for the upsample pass.
 #include "shared/common.wgsl"

@@ -373,7 +373,7 @@ mod tests {
             assert_eq!(f.iter().sum::<i32>(), 1, "threshold {c}");
             assert_eq!(f[4 * 8 + 3], 1);
         }
-        // The coarsest advected level flags nothing (no coarser level to upsample from).
+        // Level 0 flags nothing (it has no coarser level to upsample from).
         let p = PassParams {
             ex_size: [4096, 4096],
             size: [8, 8],
