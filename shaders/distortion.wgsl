@@ -12,7 +12,7 @@
 // spread under a turning flow. The correction then settles them on the exemplar's
 // flattest content (the best match for an incoherent neighbourhood), and the texture
 // blurs. Measured (README): the grass's sharpness fell from 1.25 to 0.41 over a 300-frame
-// vortex, and to 1.05 when they are flagged. params.distortion_max = 0xffffffff flags
+// vortex, and only to 1.05 once they are flagged. params.distortion_max = 0xffffffff flags
 // nothing (level 0, the pyramid's coarsest, which has nothing to upsample from).
 // Reads the advected coordinates from the scratch region (flag_base) and writes them
 // back to the level, flagged pixels as FLAGGED for the upsample pass.
