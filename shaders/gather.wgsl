@@ -1,8 +1,8 @@
 // Gather (mirror: src/passes/gather.rs): output colour = exemplar at the finest level's
 // synthesized coordinate, for the output window. With seam blending, each 4-neighbour
 // whose coordinate does not continue the pixel's (a patch seam) adds its prediction
-// E[S[n] - (n - p)] at half the pixel's own weight: seams soften, coherent pixels stay
-// exact copies.
+// E[S[n] - (n - p)] at a third of the pixel's own weight: seams soften, coherent pixels
+// stay exact copies.
 #include "shared/common.wgsl"
 
 @compute @workgroup_size(8, 8, 1)
@@ -20,8 +20,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         textureStore(out_color, p, unpack4x8unorm(own));
         return;
     }
-    var sum = 2u * unpack_rgba(own);
-    var weight = 2u;
+    var sum = 3u * unpack_rgba(own);
+    var weight = 3u;
     for (var k = 0; k < 4; k++) {
         // (1, 0), (-1, 0), (0, 1), (0, -1)
         let d = select(vec2<i32>(1 - 2 * (k & 1), 0), vec2<i32>(0, 1 - 2 * (k & 1)), k >= 2);
@@ -31,7 +31,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             weight += 1u;
         }
     }
-    // Rounded to nearest; weight is 2..6.
+    // Rounded to nearest; weight is 3..7.
     let v = (sum + vec4<u32>(weight / 2u)) / vec4<u32>(weight);
     textureStore(out_color, p, vec4<f32>(v) / 255.0);
 }

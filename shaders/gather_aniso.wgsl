@@ -2,7 +2,7 @@
 // bilinearly interpolated at the finest level's continuous coordinate, integer weights.
 // Seam blending as in gather.wgsl: a 4-neighbour n whose prediction S[n] - h J (n - p)
 // is 3/4 pixel or more from the pixel's coordinate (a patch seam, not the sub-pixel
-// misfit of a varying field) adds its predicted colour at half weight.
+// misfit of a varying field) adds its predicted colour at a third of the pixel's weight.
 #include "shared/common.wgsl"
 #include "shared/aniso.wgsl"
 
@@ -16,6 +16,9 @@ fn color_at(u: vec2<i32>) -> vec4<i32> {
     var c = u;
     if ((params.nearest | u32(opaque)) != 0u) {
         c = ((c + vec2<i32>(128)) >> vec2<u32>(8u)) << vec2<u32>(8u);
+        // A whole pixel: the three other taps would have weight 0 (the same value, one
+        // read instead of four).
+        return color_u(bilinear_taps(read_coord_fx(c)).i0);
     }
     let taps = bilinear_taps(read_coord_fx(c));
     let i0 = taps.i0;
@@ -41,8 +44,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     var v = color_at(c);
     if ((params.seam_blend | u32(opaque)) != 0u) {
         let j = jac[i];
-        var sum = 2 * v;
-        var weight = 2;
+        var sum = 3 * v;
+        var weight = 3;
         for (var k = 0; k < 4; k++) {
             // (1, 0), (-1, 0), (0, 1), (0, -1)
             let d = select(vec2<i32>(1 - 2 * (k & 1), 0), vec2<i32>(0, 1 - 2 * (k & 1)), k >= 2);
@@ -52,7 +55,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
                 weight += 1;
             }
         }
-        // Rounded to nearest; weight is 2..6.
+        // Rounded to nearest; weight is 3..7.
         v = (sum + vec4<i32>(weight / 2)) / vec4<i32>(weight);
     }
     textureStore(out_color, p, vec4<f32>(v) / 255.0);

@@ -135,7 +135,12 @@ fn indirection_lands_on_the_same_surface_point() {
 fn atlas_synthesis_gpu_matches_cpu() {
     let a = analysis(32);
     let prep = prepared(&Mesh::cube(1.0, 2), 64, a.levels.len());
-    let params = pipeline::atlas_params(&prep, &SynthParams::default());
+    // The finest level's correction is off by default; on here so that it is covered.
+    let base = SynthParams {
+        finest_passes: 1,
+        ..Default::default()
+    };
+    let params = pipeline::atlas_params(&prep, &base);
     let plan = SynthPlan::new(&a, &params).unwrap();
     let schedule = plan.schedule(&a);
     assert!(schedule.iter().any(|d| d.kind == PassKind::Fill));

@@ -57,7 +57,10 @@ pub struct SynthArgs {
           value_parser = clap::value_parser!(u32).range(0..=16))]
     pub passes: u32,
 
-    /// Correction passes on the finest level (0..=16)
+    /// Correction passes on the finest level (0..=16). With 0 (the default) the finest
+    /// level is the coherent upsampling of the next coarser one: a pass there costs about
+    /// 30% more time for no better texture. With --no-seam-blend, 1 gives a lower texture
+    /// energy
     #[arg(long, value_name = "P", default_value_t = SynthParams::default().finest_passes,
           value_parser = clap::value_parser!(u32).range(0..=16))]
     pub finest_passes: u32,

@@ -17,7 +17,8 @@ pub fn color_at(p: &PassParams, colors: &[[u8; 4]], c: [i32; 2]) -> [u8; 4] {
 /// Returns the window's fixed-point coordinates and RGBA8 colours, row-major. With
 /// `seam_blend`, as in [`super::gather::run`]: a 4-neighbour `n` whose prediction
 /// `S[n] - h J (n - p)` is 3/4 pixel or more from the pixel's coordinate (a patch seam,
-/// not the sub-pixel misfit of a varying field) adds its predicted colour at half weight.
+/// not the sub-pixel misfit of a varying field) adds its predicted colour at a third of
+/// the pixel's weight.
 pub fn run(
     p: &PassParams,
     coords: &[[i32; 2]],

@@ -30,8 +30,12 @@ pub struct SynthParams {
     pub randomness: Vec<f32>,
     /// Correction passes (each = 4 subpasses) at every level but the finest.
     pub passes: u32,
-    /// Correction passes at the finest level (3/4 of all pixels, so the costly one;
-    /// measured to matter far less than the coarser levels' passes).
+    /// Correction passes at the finest level (3/4 of all pixels, so the costly one).
+    /// Default 0: the finest level is the coherent upsampling of the next coarser one
+    /// (no jitter there, so children continue their parents exactly). Measured on 14
+    /// exemplars at 512x512 (README, *Measured figures*): with seam blending, a pass
+    /// there changes the texture energy by -3% to +2% and the Jacobian fidelity by up to
+    /// -8 points, for about 30% of the synthesis time.
     pub finest_passes: u32,
     /// Bias towards coherent candidates: the others' distance is multiplied by
     /// `1 + coherence` (0 to 4).
@@ -89,7 +93,7 @@ impl Default for SynthParams {
             seed: 1,
             randomness: Vec::new(),
             passes: 4,
-            finest_passes: 1,
+            finest_passes: 0,
             coherence: 1.0,
             distance: DistanceMode::Mixed,
             field: None,
