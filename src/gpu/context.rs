@@ -203,7 +203,7 @@ impl GpuContext {
     /// drivers). Optional: pipelines are otherwise built when first needed. Every
     /// synthesizer on this context shares them.
     pub fn prepare_pipelines(&self, anisometric: bool) -> Result<()> {
-        self.scoped(|| self.pass_pipelines().prepare(self, anisometric))
+        self.pass_pipelines().prepare(self, anisometric)
     }
 
     /// One line about the adapter, e.g.
