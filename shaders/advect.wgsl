@@ -37,7 +37,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let v = clamp(vq - k * unit, vec2<i32>(-(128 << 10u)), vec2<i32>(128 << 10u));
     let src = clamp(q - k, vec2<i32>(0), params.size - vec2<i32>(1));
     let prev = coords[params.coord_base + u32(src.y * params.size.x + src.x)];
-    let j = jac[i];
+    let j = jac_at(i);
     // J V in 1/2^20 exemplar pixel to 1/256, rounded with this frame's offset (a
     // low-discrepancy sequence: the rounding errors of a pixel do not add up over frames).
     let jv = vec2<i32>(j.x * v.x + j.y * v.y, j.z * v.x + j.w * v.y);

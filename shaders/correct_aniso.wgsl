@@ -166,7 +166,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (!in_chart(self_index - params.coord_base)) {
         return;
     }
-    let j = jac[self_index];
+    let j = jac_at(self_index);
     let h = params.step;
     let n = load_neighbours(q);
 

@@ -62,7 +62,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let s = coords[params.flag_base + t];
     var flag = false;
     if (in_chart(t)) {
-        let j = jac[i];
+        let j = jac_at(i);
         let h = params.spacing;
         let ex = axis_err(q, s, vec2<i32>(1, 0), scaled_jd(h, j, vec2<i32>(1, 0)));
         let ey = axis_err(q, s, vec2<i32>(0, 1), scaled_jd(h, j, vec2<i32>(0, 1)));

@@ -43,7 +43,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let c = coords[i];
     var v = color_at(c);
     if ((params.seam_blend | u32(opaque)) != 0u) {
-        let j = jac[i];
+        let j = jac_at(i);
         var sum = 3 * v;
         var weight = 3;
         for (var k = 0; k < 4; k++) {

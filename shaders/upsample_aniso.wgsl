@@ -21,7 +21,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     var c = fit_coord(vec2<i32>(0));
     if ((params.parent_size.x | opaque) > 0) {
         let odd = abs_p & vec2<i32>(1);
-        let j = jac[i];
+        let j = jac_at(i);
         let base = fit_coord(parent_at(abs_p, vec2<i32>(0)) + scaled_jd(params.spacing, j, odd));
         c = base;
         // An odd child lies between two (or four) parents: average their predictions

@@ -87,6 +87,11 @@ override QUARTER: bool = false;
 // supersampled tables (quarter pixels, crate::gpu::synth::FineTables) instead of every
 // level's tables. Set only with QUARTER, for the level the tables were built for.
 override FINE_TABLES: bool = false;
+// GPU only (no PassParams field): every Jacobian of the plan is the identity (an
+// anisometric plan without a field: advection, `--field rotate:0`), so jac_at() returns
+// the constant the jac binding holds anyway and the compiler folds the J arithmetic
+// that follows it (phi(J^-1 D), h J d).
+override IDENTITY_J: bool = false;
 // params.k: the similarity-set size (1..=8), so that the candidate loop unrolls.
 override K: i32 = 2;
 // Synthesized exemplar coordinates of every level's region, concatenated.
@@ -108,6 +113,15 @@ override K: i32 = 2;
 // Anisometric passes: quantized Jacobian per region pixel (row-major a, b, c, d in
 // 1/1024), in the layout of `coords`. A 16-byte placeholder for isometric synthesis.
 @group(0) @binding(8) var<storage, read> jac: array<vec4<i32>>;
+// The Jacobian of region entry i (the anisometric passes): jac[i], or with IDENTITY_J
+// the identity it holds (1024 = 1).
+fn jac_at(i: u32) -> vec4<i32> {
+    if (IDENTITY_J) {
+        return vec4<i32>(1024, 0, 0, 1024);
+    }
+    return jac[i];
+}
+
 // Atlas synthesis (src/passes/fill.rs): per level, the chart mask (one bit per region
 // texel) and the indirection entries. A 16-byte placeholder otherwise.
 @group(0) @binding(9) var<storage, read> surface: array<u32>;

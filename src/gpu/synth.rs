@@ -255,13 +255,13 @@ type JacobianKey = (
 
 /// The switches compiled into a pass pipeline as WGSL overrides (`shaders/shared/
 /// common.wgsl`): a pipeline per combination in use, so that CPU drivers do not run the
-/// branches a dispatch never takes. Bits 0-6: the flags of [`Self::FLAGS`]; bits 7-9:
+/// branches a dispatch never takes. Bits 0-7: the flags of [`Self::FLAGS`]; bits 8-10:
 /// the similarity-set size k - 1.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) struct Variant(u16);
 
 impl Variant {
-    const FLAGS: [&'static str; 7] = [
+    const FLAGS: [&'static str; 8] = [
         "TILEABLE",
         "FULL_DISTANCE",
         "KSET_INTERP",
@@ -269,13 +269,15 @@ impl Variant {
         "PERIODIC",
         "QUARTER",
         "FINE_TABLES",
+        "IDENTITY_J",
     ];
-    const K_SHIFT: u32 = 7;
-    const COUNT: usize = 1 << 10;
+    const K_SHIFT: u32 = 8;
+    const COUNT: usize = 1 << 11;
     /// The bits only the correction passes read: FULL_DISTANCE, KSET_INTERP, QUARTER,
     /// FINE_TABLES and k.
-    const CORRECTION_ONLY: u16 = 0b11_1110_0110;
+    const CORRECTION_ONLY: u16 = 0b111_0110_0110;
     const FINE_TABLES: u16 = 1 << 6;
+    const IDENTITY_J: u16 = 1 << 7;
 
     /// The switches of a dispatch, from the parameters the CPU mirror reads
     /// (FINE_TABLES off: see [`Self::with_fine_tables`]).
@@ -300,6 +302,13 @@ impl Variant {
     /// The same, reading the level's quarter-pixel tables ([`FineTables`]).
     fn with_fine_tables(self) -> Self {
         Self(self.0 | Self::FINE_TABLES)
+    }
+
+    /// The same, for a plan whose Jacobians are all the identity
+    /// ([`SynthPlan::identity_jacobians`]): the passes use the constant instead of
+    /// reading it.
+    fn with_identity_jacobians(self) -> Self {
+        Self(self.0 | Self::IDENTITY_J)
     }
 
     /// The switches only the correction passes read are reset for the others, so they
@@ -973,8 +982,12 @@ impl GpuSynthesizer {
                 label: Some("texsyn synthesis"),
                 timestamp_writes: None,
             });
+            let identity = plan.identity_jacobians();
             for (i, d) in schedule.iter().enumerate() {
                 let mut variant = Variant::of(&d.params);
+                if identity {
+                    variant = variant.with_identity_jacobians();
+                }
                 let mut group = &bind_group;
                 if let Some((f, g)) = &fine_group {
                     if fine_dispatch(d) && f.et_base == d.params.et_base {
@@ -1099,9 +1112,13 @@ impl GpuSynthesizer {
     pub fn prepare(&self, ctx: &GpuContext, params: &SynthParams) -> Result<()> {
         let plan = SynthPlan::new(&self.analysis, params)?;
         let schedule = plan.schedule(&self.analysis);
+        let identity = plan.identity_jacobians();
         self.pipelines.prepare_dispatches(
             ctx,
-            schedule.iter().map(|d| (d.kind, Variant::of(&d.params))),
+            schedule.iter().map(|d| {
+                let v = Variant::of(&d.params);
+                (d.kind, if identity { v.with_identity_jacobians() } else { v })
+            }),
         )
     }
 

@@ -439,6 +439,13 @@ impl SynthPlan {
     /// Quantized Jacobians of every level's region, in the coordinate array's layout
     /// (empty for isometric synthesis). Pixel `p` of level `l` samples the field at its
     /// centre in output pixels.
+    /// Whether every Jacobian of [`Self::jacobians`] is the identity: an anisometric plan
+    /// whose field is the identity transform (advection without a field), not on a
+    /// surface. The GPU passes then use the constant (`IDENTITY_J`), the same values.
+    pub fn identity_jacobians(&self) -> bool {
+        self.params.surface.is_none() && self.params.field.as_ref().is_some_and(Field::is_identity)
+    }
+
     pub fn jacobians(&self) -> Vec<[i32; 4]> {
         if let Some(d) = &self.params.surface {
             let n = self.levels.len();
