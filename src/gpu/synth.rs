@@ -1117,7 +1117,14 @@ impl GpuSynthesizer {
             ctx,
             schedule.iter().map(|d| {
                 let v = Variant::of(&d.params);
-                (d.kind, if identity { v.with_identity_jacobians() } else { v })
+                (
+                    d.kind,
+                    if identity {
+                        v.with_identity_jacobians()
+                    } else {
+                        v
+                    },
+                )
             }),
         )
     }
