@@ -247,6 +247,28 @@ fn pipelines_prepared_ahead_of_time() {
         };
         let out = s.synthesize_to_host(&ctx, &params).unwrap();
         assert_eq!(out.colors.len(), 24 * 16);
+        // A synthesizer's own preparation (the exact variants of a plan, here along a
+        // field and with the identity field) changes nothing in the result.
+        for field in [
+            texsyn::field::Field::Constant {
+                angle: 0.4,
+                scale: [1.0, 1.0],
+                shear: 0.0,
+            },
+            texsyn::field::Field::Constant {
+                angle: 0.0,
+                scale: [1.0, 1.0],
+                shear: 0.0,
+            },
+        ] {
+            let p = texsyn::SynthParams {
+                field: Some(field),
+                ..params.clone()
+            };
+            let before = s.synthesize_to_host(&ctx, &p).unwrap();
+            s.prepare(&ctx, &p).unwrap();
+            assert_eq!(s.synthesize_to_host(&ctx, &p).unwrap(), before);
+        }
     }
     ctx.take_uncaptured_errors().unwrap();
 }
