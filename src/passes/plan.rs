@@ -623,19 +623,24 @@ impl SynthPlan {
             // The level's fills and corrections, as in synthesis (no jitter: the
             // advected pixels keep their place, the re-upsampled ones are rare). With one
             // pass, each frame runs half of the finest level's subpasses (every pixel is
-            // corrected every other frame) and a quarter of the coarser levels' (every
-            // fourth frame; measured: the same figures as every other frame, 256x256
-            // vortex over 300 frames, gravel and brick), in turn and staggered between
-            // levels. Measured (README): a fifth less per frame than half of every
-            // level's subpasses; with the quarter-pixel reads, about 42% of a synthesis
-            // at 512x512 on lavapipe (35-46%).
+            // corrected every other frame), and every other frame one of a coarser level's
+            // four (every pixel every eighth frame; the two coarser levels take turns, so
+            // every frame costs about the same). Measured (README, 256x256 vortex over 300
+            // frames): a quarter of the coarser levels' subpasses per frame gave the same
+            // figures as half; an eighth raises the energy at frame 300 by 2-5% (gravel,
+            // brick; the marble's veins stay), for a per-frame cost of 48-50% of a
+            // synthesis at 512x512 on lavapipe instead of 53-56%.
             let mut subpass = 0u64;
             let mut keep_fill = true;
             for d in full.iter().filter(|d| d.level == level) {
                 match d.kind {
                     PassKind::CorrectAniso => {
-                        let every = if level + 1 == n { 2 } else { 4 };
-                        keep_fill = passes > 1 || subpass % every == (frame + level as u64) % every;
+                        keep_fill = passes > 1
+                            || if level + 1 == n {
+                                subpass % 2 == (frame + level as u64) % 2
+                            } else {
+                                (2 * subpass) % 8 == (frame + level as u64) % 8
+                            };
                         subpass += 1;
                         if keep_fill {
                             let mut d = *d;
