@@ -15,7 +15,8 @@
 // vortex, and only to 1.05 once they are flagged. params.distortion_max = 0xffffffff flags
 // nothing (level 0, the pyramid's coarsest, which has nothing to upsample from).
 // Reads the advected coordinates from the scratch region (flag_base) and writes them
-// back to the level, flagged pixels as FLAGGED for the upsample pass.
+// back to the level, flagged pixels upsampled again from the coarser level
+// (upsample_at, shared with upsample_aniso.wgsl; it reads only the coarser level).
 #include "shared/common.wgsl"
 #include "shared/aniso.wgsl"
 
@@ -70,5 +71,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         let err = select(ex, 0u, ex == BETWEEN_SEAMS) + select(ey, 0u, ey == BETWEEN_SEAMS);
         flag = params.distortion_max != 0xffffffffu && (isolated || err > params.distortion_max);
     }
-    coords[i] = select(s, vec2<i32>(FLAGGED), flag);
+    if (flag) {
+        coords[i] = upsample_at(params.origin + q, i);
+    } else {
+        coords[i] = s;
+    }
 }

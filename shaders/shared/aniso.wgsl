@@ -131,3 +131,45 @@ fn rotate_normal(v: vec4<i32>, j: vec4<i32>, green_up: bool) -> vec4<i32> {
     }
     return vec4<i32>(clamp((r * flip + vec2<i32>(256)) >> vec2<u32>(1u), vec2<i32>(0), vec2<i32>(255)), v.zw);
 }
+
+// The upsampling of the pixel at absolute position abs_p (its coordinate at index i of
+// `coords`) from the coarser level (params.parent_*), as in upsample_aniso.wgsl:
+// S_l[p] = S_{l-1}[floor(p/2)] + h_l J(p) (p mod 2); an odd child lies between two (or
+// four) parents and averages their predictions when they agree within a pixel, so a
+// sub-pixel misfit between parents (a non-integrable field J) is spread over the
+// children instead of becoming a step. Predictions that differ by a pixel or more (a
+// patch seam, and every disagreement when J = I) keep the nearest parent's: isometric
+// results stay exact.
+fn upsample_at(abs_p: vec2<i32>, i: u32) -> vec2<i32> {
+    var c = fit_coord(vec2<i32>(0));
+    if ((params.parent_size.x | opaque) > 0) {
+        let odd = abs_p & vec2<i32>(1);
+        let j = jac_at(i);
+        let base = fit_coord(parent_at(abs_p, vec2<i32>(0)) + scaled_jd(params.spacing, j, odd));
+        c = base;
+        if (any(odd != vec2<i32>(0))) {
+            var sum = vec2<i32>(0);
+            var agree = true;
+            for (var k = 1; k < 4; k++) {
+                let d = vec2<i32>(k & 1, k >> 1u);
+                if (any(d > odd)) {
+                    continue;
+                }
+                let pred = fit_coord(parent_at(abs_p, d) + scaled_jd(params.spacing, j, odd - 2 * d));
+                agree = agree && same_patch(pred, base);
+                sum += coord_delta(pred - base);
+            }
+            if (agree) {
+                let shift = u32(odd.x + odd.y);
+                c = fit_coord(base + ((sum + vec2<i32>(i32(1u << shift) >> 1u)) >> vec2<u32>(shift)));
+            }
+        }
+    }
+    return c;
+}
+
+// The parent at block offset d (0 or 1 per axis) from the child's own.
+fn parent_at(abs_p: vec2<i32>, d: vec2<i32>) -> vec2<i32> {
+    let pp = clamp((abs_p >> vec2<u32>(1u)) + d - params.parent_origin, vec2<i32>(0), params.parent_size - vec2<i32>(1));
+    return coords[params.parent_coord_base + u32(pp.y * params.parent_size.x + pp.x)];
+}

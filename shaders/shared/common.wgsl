@@ -218,8 +218,6 @@ fn is_valid(c: vec2<i32>) -> bool {
     return all(c >= vec2<i32>(m)) && all(c <= hi);
 }
 
-// Advection: a pixel the distortion pass flags for upsampling (no coordinate is this).
-const FLAGGED: i32 = -2147483647 - 1;
 
 // Index into `coords` of region pixel q (clamped into the region).
 // Periodic output (params.periodic != 0): the region is one period and wraps around

@@ -48,10 +48,6 @@ pub fn velocity_at(p: &PassParams, velocity: &[[i32; 2]], abs: [i32; 2]) -> [i32
     velocity[(y * p.window_size[0] + x) as usize]
 }
 
-/// A pixel the distortion pass flags for upsampling, in place of its coordinate (no
-/// coordinate is this).
-pub const FLAGGED: i32 = i32::MIN;
-
 /// Mirror of `advect.wgsl`: the level's advected coordinates, into the scratch region
 /// (`flag_base`), from which [`distortion`] copies them back.
 pub fn advect(p: &PassParams, coords: &mut [[i32; 2]], jac: &[[i32; 4]], velocity: &[[i32; 2]]) {
@@ -97,8 +93,45 @@ fn step_err(p: &PassParams, d: [i32; 2]) -> u32 {
     c[0] * c[0] + c[1] * c[1]
 }
 
-/// Mirror of `distortion.wgsl`: reads the advected coordinates from the scratch region
-/// and writes them back to the level, the pixels to upsample again as [`FLAGGED`].
+/// Whether the distortion pass flags region pixel `(x, y)` for upsampling again, from
+/// the advected coordinates in the scratch region (see `distortion.wgsl`).
+pub fn flagged(
+    p: &PassParams,
+    coords: &[[i32; 2]],
+    jac: &[[i32; 4]],
+    surface: &[u32],
+    x: i32,
+    y: i32,
+) -> bool {
+    let t = (y * p.size[0] + x) as usize;
+    if p.distortion_max == u32::MAX || !in_chart(p, surface, t as u32) {
+        return false;
+    }
+    let scratch = p.flag_base as usize;
+    let s = coords[scratch + t];
+    let (j, h) = (jac[p.coord_base as usize + t], p.spacing);
+    let at = |dx: i32, dy: i32| coords[scratch + region_index([x + dx, y + dy], p)];
+    // None: a seam on both sides (a strip between two seams, see distortion.wgsl).
+    let axis = |e: [i32; 2]| {
+        let ex = scaled_jd(h, j, e);
+        let f = at(e[0], e[1]);
+        let b = at(-e[0], -e[1]);
+        let fwd = [f[0] - s[0] - ex[0], f[1] - s[1] - ex[1]];
+        let bwd = [s[0] - b[0] - ex[0], s[1] - b[1] - ex[1]];
+        let err = step_err(p, fwd).min(step_err(p, bwd));
+        (err <= seam_err(p.spacing)).then_some(err)
+    };
+    let (ex, ey) = (axis([1, 0]), axis([0, 1]));
+    // A pixel between seams on both axes continues no neighbour: it is upsampled again
+    // too (else such pixels spread and blur the texture, distortion.wgsl).
+    let isolated = ex.is_none() && ey.is_none();
+    let err = ex.unwrap_or(0) + ey.unwrap_or(0);
+    isolated || err > p.distortion_max
+}
+
+/// Mirror of `distortion.wgsl`: writes the advected coordinates from the scratch region
+/// back to the level, and in place of the [`flagged`] ones their upsampling from the
+/// coarser level ([`super::upsample_aniso::upsample_pixel`]; it reads only that level).
 pub fn distortion(p: &PassParams, coords: &mut [[i32; 2]], jac: &[[i32; 4]], surface: &[u32]) {
     let base = p.coord_base as usize;
     let scratch = p.flag_base as usize;
@@ -106,30 +139,11 @@ pub fn distortion(p: &PassParams, coords: &mut [[i32; 2]], jac: &[[i32; 4]], sur
     for y in 0..p.size[1] {
         for x in 0..p.size[0] {
             let t = (y * p.size[0] + x) as usize;
-            let s = coords[scratch + t];
-            if !in_chart(p, surface, t as u32) {
-                out.push(s);
-                continue;
-            }
-            let (j, h) = (jac[base + t], p.spacing);
-            let at = |dx: i32, dy: i32| coords[scratch + region_index([x + dx, y + dy], p)];
-            // None: a seam on both sides (a strip between two seams, see distortion.wgsl).
-            let axis = |e: [i32; 2]| {
-                let ex = scaled_jd(h, j, e);
-                let f = at(e[0], e[1]);
-                let b = at(-e[0], -e[1]);
-                let fwd = [f[0] - s[0] - ex[0], f[1] - s[1] - ex[1]];
-                let bwd = [s[0] - b[0] - ex[0], s[1] - b[1] - ex[1]];
-                let err = step_err(p, fwd).min(step_err(p, bwd));
-                (err <= seam_err(p.spacing)).then_some(err)
-            };
-            let (ex, ey) = (axis([1, 0]), axis([0, 1]));
-            // A pixel between seams on both axes continues no neighbour: it is upsampled
-            // again too (else such pixels spread and blur the texture, distortion.wgsl).
-            let isolated = ex.is_none() && ey.is_none();
-            let err = ex.unwrap_or(0) + ey.unwrap_or(0);
-            let flag = p.distortion_max != u32::MAX && (isolated || err > p.distortion_max);
-            out.push(if flag { [FLAGGED; 2] } else { s });
+            out.push(if flagged(p, coords, jac, surface, x, y) {
+                super::upsample_aniso::upsample_pixel(p, coords, jac, [x, y])
+            } else {
+                coords[scratch + t]
+            });
         }
     }
     coords[base..base + out.len()].copy_from_slice(&out);
@@ -239,19 +253,20 @@ mod tests {
         // The advected coordinates in the scratch region, as the advect pass leaves them.
         coords.resize(128, [0, 0]);
         coords.copy_within(0..64, 64);
+        let f: Vec<i32> = (0..64)
+            .map(|t| flagged(&p, coords, &jac, &[], t % 8, t / 8) as i32)
+            .collect();
         distortion(&p, coords, &jac, &[]);
-        coords[..64]
-            .iter()
-            .zip(64..)
-            .map(|(c, s)| {
-                if *c == [FLAGGED; 2] {
-                    1
-                } else {
-                    assert_eq!(*c, coords[s], "unflagged pixels are copied back");
-                    0
-                }
-            })
-            .collect()
+        for t in 0..64 {
+            if f[t] == 0 {
+                assert_eq!(
+                    coords[t],
+                    coords[64 + t],
+                    "unflagged pixels are copied back"
+                );
+            }
+        }
+        f
     }
 
     #[test]

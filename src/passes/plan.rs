@@ -599,8 +599,10 @@ impl SynthPlan {
                 },
             });
             // The advected coordinates wait in the scratch region; the distortion pass
-            // writes them back (on the coarsest level, which has nothing to upsample
-            // from, none is flagged).
+            // writes them back, and the flagged ones upsampled again from the coarser
+            // level (on the coarsest level, which has nothing to upsample from, none is
+            // flagged). One pass where a separate upsampling of the flagged pixels read
+            // every pixel's flag: about 5% of a 512x512 frame.
             out.push(Dispatch {
                 kind: PassKind::Distortion,
                 level,
@@ -613,13 +615,6 @@ impl SynthPlan {
                     }
                 },
             });
-            if level > 0 {
-                out.push(Dispatch {
-                    kind: PassKind::UpsampleAniso,
-                    level,
-                    params: adv,
-                });
-            }
             // The level's fills and corrections, as in synthesis (no jitter: the
             // advected pixels keep their place, the re-upsampled ones are rare). With one
             // pass, each frame runs half of the finest level's subpasses (every pixel is

@@ -61,13 +61,6 @@ pub fn upsample_pixel(
 pub fn run(p: &PassParams, coords: &mut [[i32; 2]], jac: &[[i32; 4]]) {
     for y in 0..p.size[1] {
         for x in 0..p.size[0] {
-            // Advection: only the pixels the distortion pass flagged.
-            if p.flag_base != 0
-                && coords[p.coord_base as usize + (y * p.size[0] + x) as usize][0]
-                    != super::advect::FLAGGED
-            {
-                continue;
-            }
             let c = upsample_pixel(p, coords, jac, [x, y]);
             coords[p.coord_base as usize + (y * p.size[0] + x) as usize] = c;
         }
