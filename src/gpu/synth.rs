@@ -304,11 +304,16 @@ impl Variant {
         Self(self.0 | Self::FINE_TABLES)
     }
 
-    /// The same, for a plan whose Jacobians are all the identity
-    /// ([`SynthPlan::identity_jacobians`]): the passes use the constant instead of
-    /// reading it.
-    fn with_identity_jacobians(self) -> Self {
-        Self(self.0 | Self::IDENTITY_J)
+    /// The switches of a dispatch of `plan`: [`Self::of`], plus IDENTITY_J where the
+    /// plan's Jacobians are all the identity ([`SynthPlan::identity_jacobians`]), so that
+    /// the passes use the constant instead of reading it.
+    fn of_dispatch(plan: &SynthPlan, d: &Dispatch) -> Self {
+        let v = Self::of(&d.params);
+        if plan.identity_jacobians() {
+            Self(v.0 | Self::IDENTITY_J)
+        } else {
+            v
+        }
     }
 
     /// The switches only the correction passes read are reset for the others, so they
@@ -982,12 +987,8 @@ impl GpuSynthesizer {
                 label: Some("texsyn synthesis"),
                 timestamp_writes: None,
             });
-            let identity = plan.identity_jacobians();
             for (i, d) in schedule.iter().enumerate() {
-                let mut variant = Variant::of(&d.params);
-                if identity {
-                    variant = variant.with_identity_jacobians();
-                }
+                let mut variant = Variant::of_dispatch(plan, d);
                 let mut group = &bind_group;
                 if let Some((f, g)) = &fine_group {
                     if fine_dispatch(d) && f.et_base == d.params.et_base {
@@ -1112,20 +1113,11 @@ impl GpuSynthesizer {
     pub fn prepare(&self, ctx: &GpuContext, params: &SynthParams) -> Result<()> {
         let plan = SynthPlan::new(&self.analysis, params)?;
         let schedule = plan.schedule(&self.analysis);
-        let identity = plan.identity_jacobians();
         self.pipelines.prepare_dispatches(
             ctx,
-            schedule.iter().map(|d| {
-                let v = Variant::of(&d.params);
-                (
-                    d.kind,
-                    if identity {
-                        v.with_identity_jacobians()
-                    } else {
-                        v
-                    },
-                )
-            }),
+            schedule
+                .iter()
+                .map(|d| (d.kind, Variant::of_dispatch(&plan, d))),
         )
     }
 
