@@ -172,10 +172,6 @@ pub fn clamp_singular(m: &Mat2) -> Mat2 {
     let r = (f * f + g * g).sqrt();
     let s1 = q + r;
     let s2 = q - r;
-    let a1 = g.atan2(f);
-    let a2 = h.atan2(e);
-    let theta = (a2 + a1) / 2.0;
-    let phi = (a2 - a1) / 2.0;
     let lo = 1.0 / MAX_SCALE;
     let c1 = s1.clamp(lo, MAX_SCALE);
     let c2 = if s2 < 0.0 {
@@ -186,6 +182,12 @@ pub fn clamp_singular(m: &Mat2) -> Mat2 {
     if c1 == s1 && c2 == s2 {
         return *m;
     }
+    // The angles only where a value was clamped (two atan2 were most of a field's
+    // rasterization time).
+    let a1 = g.atan2(f);
+    let a2 = h.atan2(e);
+    let theta = (a2 + a1) / 2.0;
+    let phi = (a2 - a1) / 2.0;
     let r_t = rot(theta);
     let r_p = rot(phi);
     let r_pt = [[r_p[0][0], r_p[1][0]], [r_p[0][1], r_p[1][1]]];
@@ -390,6 +392,9 @@ pub fn rasterize_region(
 ) -> Vec<[i32; 4]> {
     let f = (1u64 << steps.min(62)) as f64;
     let w = size[0] as usize;
+    if let Field::Constant { .. } = field {
+        return vec![quantize(&field.at(0.0, 0.0)); w * size[1] as usize];
+    }
     // Rows in parallel (trigonometry and a 2x2 SVD per pixel: ~100 ns each).
     crate::analysis::par_ranges(size[1] as usize, 0, |rows| {
         let mut out = Vec::with_capacity(rows.len() * w);

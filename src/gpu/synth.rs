@@ -855,38 +855,7 @@ impl GpuSynthesizer {
             let o = i * PARAMS_STRIDE as usize;
             bytes[o..o + std::mem::size_of::<PassParams>()].copy_from_slice(bytemuck::bytes_of(e));
         }
-        // The Jacobian field, rasterized on the host for this plan's regions (a
-        // placeholder for isometric synthesis). Per call, like the parameters.
-        let key: JacobianKey = (
-            plan.params.field.clone(),
-            plan.levels.iter().map(|l| (l.origin, l.size)).collect(),
-            plan.params
-                .surface
-                .as_ref()
-                .map(|d| Arc::as_ptr(d) as usize),
-        );
-        let mut cached = self.jacobians.lock().unwrap_or_else(|e| e.into_inner());
-        let (jac, surface) = match cached.as_ref() {
-            Some((k, jac, surface)) if *k == key => (jac.clone(), surface.clone()),
-            _ => {
-                let init = |label: &str, words: &[u8]| {
-                    ctx.device
-                        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                            label: Some(label),
-                            contents: if words.is_empty() { &[0u8; 16] } else { words },
-                            usage: wgpu::BufferUsages::STORAGE,
-                        })
-                };
-                let jac = init("texsyn jacobians", bytemuck::cast_slice(&plan.jacobians()));
-                let surface = init(
-                    "texsyn atlas surface",
-                    bytemuck::cast_slice(&plan.surface_words().0),
-                );
-                *cached = Some((key, jac.clone(), surface.clone()));
-                (jac, surface)
-            }
-        };
-        drop(cached);
+        let (jac, surface) = self.jacobian_buffers(ctx, plan);
         // Parameters live in their own buffer per call: a later call must not overwrite
         // them before this one's commands have run.
         let params = ctx
@@ -1041,6 +1010,41 @@ impl GpuSynthesizer {
         coords_buffer.clone()
     }
 
+    /// The Jacobian field rasterized on the host for this plan's regions (a placeholder
+    /// for isometric synthesis) and the atlas surface buffer, from the cache when the
+    /// last plan had the same field and regions.
+    fn jacobian_buffers(&self, ctx: &GpuContext, plan: &SynthPlan) -> (wgpu::Buffer, wgpu::Buffer) {
+        let key: JacobianKey = (
+            plan.params.field.clone(),
+            plan.levels.iter().map(|l| (l.origin, l.size)).collect(),
+            plan.params
+                .surface
+                .as_ref()
+                .map(|d| Arc::as_ptr(d) as usize),
+        );
+        let mut cached = self.jacobians.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((k, jac, surface)) = cached.as_ref() {
+            if *k == key {
+                return (jac.clone(), surface.clone());
+            }
+        }
+        let init = |label: &str, words: &[u8]| {
+            ctx.device
+                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some(label),
+                    contents: if words.is_empty() { &[0u8; 16] } else { words },
+                    usage: wgpu::BufferUsages::STORAGE,
+                })
+        };
+        let jac = init("texsyn jacobians", bytemuck::cast_slice(&plan.jacobians()));
+        let surface = init(
+            "texsyn atlas surface",
+            bytemuck::cast_slice(&plan.surface_words().0),
+        );
+        *cached = Some((key, jac.clone(), surface.clone()));
+        (jac, surface)
+    }
+
     pub(crate) fn output_texture(
         &self,
         ctx: &GpuContext,
@@ -1113,12 +1117,29 @@ impl GpuSynthesizer {
     pub fn prepare(&self, ctx: &GpuContext, params: &SynthParams) -> Result<()> {
         let plan = SynthPlan::new(&self.analysis, params)?;
         let schedule = plan.schedule(&self.analysis);
-        self.pipelines.prepare_dispatches(
-            ctx,
-            schedule
-                .iter()
-                .map(|d| (d.kind, Variant::of_dispatch(&plan, d))),
-        )
+        let (heavy, light): (Vec<_>, Vec<_>) = schedule
+            .iter()
+            .map(|d| (d.kind, Variant::of_dispatch(&plan, d)))
+            .partition(|(kind, _)| matches!(kind, PassKind::Correct | PassKind::CorrectAniso));
+        // The correction's pipeline takes the longest to build (lavapipe: 20 ms, 50 ms
+        // anisometric, against 10 and 18 ms for all the others); it is built on a second
+        // thread while this one builds the others and rasterizes the Jacobian field on
+        // the host (20-30 ms at 512x512), which the synthesis then finds in its cache.
+        std::thread::scope(|scope| {
+            let corrections = scope.spawn(|| self.pipelines.prepare_dispatches(ctx, heavy));
+            let rest = self
+                .pipelines
+                .prepare_dispatches(ctx, light)
+                .and_then(|()| {
+                    ctx.scoped(|| {
+                        self.jacobian_buffers(ctx, &plan);
+                    })
+                });
+            let corrections = corrections
+                .join()
+                .unwrap_or_else(|_| Err(Error::Gpu("building a pipeline panicked".into())));
+            rest.and(corrections)
+        })
     }
 
     /// Synthesizes and submits; returns when the GPU has finished.
