@@ -268,6 +268,10 @@ impl SessionBuilder {
         analysis.validate()?;
         crate::passes::SynthPlan::new(&analysis, &self.params)?;
         let synthesizer = Arc::new(GpuSynthesizer::new(&context, Arc::new(analysis))?);
+        // The pipelines (and the rasterized field) now, so that `run` only synthesizes.
+        if synthesizer.fits(&context, &self.params) {
+            synthesizer.prepare(&context, &self.params)?;
+        }
         Ok(Session {
             context,
             synthesizer,

@@ -1112,8 +1112,10 @@ impl GpuSynthesizer {
 
     /// Builds the pipelines a synthesis of `params` uses now rather than while its first
     /// submission is recorded (see [`GpuContext::prepare_pipelines`]), e.g. to time them
-    /// apart or to build them while the application does other work. Optional; the
-    /// synthesis is the same either way.
+    /// apart or to build them while the application does other work. An anisometric
+    /// plan's Jacobian field is rasterized and uploaded too (kept for the synthesis that
+    /// follows with the same field and regions). Optional; the synthesis is the same
+    /// either way.
     pub fn prepare(&self, ctx: &GpuContext, params: &SynthParams) -> Result<()> {
         let plan = SynthPlan::new(&self.analysis, params)?;
         let schedule = plan.schedule(&self.analysis);
