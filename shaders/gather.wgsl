@@ -16,7 +16,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let q = p + params.window_offset;
     let c = coords[wi];
     let own = colors[ex_index(c)];
-    if ((params.seam_blend | u32(opaque)) == 0u) {
+    if (!SEAM_BLEND) {
         textureStore(out_color, p, unpack4x8unorm(own));
         return;
     }

@@ -14,7 +14,7 @@ fn color_u(c: vec2<i32>) -> vec4<i32> {
 // RGBA (0..255) at a fixed-point position: bilinear, or the nearest texel (advection).
 fn color_at(u: vec2<i32>) -> vec4<i32> {
     var c = u;
-    if ((params.nearest | u32(opaque)) != 0u) {
+    if (NEAREST) {
         c = ((c + vec2<i32>(128)) >> vec2<u32>(8u)) << vec2<u32>(8u);
         // A whole pixel: the three other taps would have weight 0 (the same value, one
         // read instead of four).
@@ -42,7 +42,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = u32(wi);
     let c = coords[i];
     var v = color_at(c);
-    if ((params.seam_blend | u32(opaque)) != 0u) {
+    if (SEAM_BLEND) {
         let j = jac_at(i);
         var sum = 3 * v;
         var weight = 3;

@@ -261,7 +261,7 @@ type JacobianKey = (
 pub(crate) struct Variant(u16);
 
 impl Variant {
-    const FLAGS: [&'static str; 8] = [
+    const FLAGS: [&'static str; 10] = [
         "TILEABLE",
         "FULL_DISTANCE",
         "KSET_INTERP",
@@ -270,12 +270,16 @@ impl Variant {
         "QUARTER",
         "FINE_TABLES",
         "IDENTITY_J",
+        "NEAREST",
+        "SEAM_BLEND",
     ];
-    const K_SHIFT: u32 = 8;
-    const COUNT: usize = 1 << 11;
+    const K_SHIFT: u32 = 10;
+    const COUNT: usize = 1 << 13;
     /// The bits only the correction passes read: FULL_DISTANCE, KSET_INTERP, QUARTER,
     /// FINE_TABLES and k.
-    const CORRECTION_ONLY: u16 = 0b111_0110_0110;
+    const CORRECTION_ONLY: u16 = 0b1_1100_0110_0110;
+    /// The bits only the gathers read: NEAREST and SEAM_BLEND.
+    const GATHER_ONLY: u16 = 0b11 << 8;
     const FINE_TABLES: u16 = 1 << 6;
     const IDENTITY_J: u16 = 1 << 7;
 
@@ -289,6 +293,10 @@ impl Variant {
             p.masked != 0,
             p.periodic != 0,
             p.quarter != 0,
+            false,
+            false,
+            p.nearest != 0,
+            p.seam_blend != 0,
         ];
         let k = (p.k.clamp(1, crate::analysis::MAX_K as i32) - 1) as u16;
         Self(
@@ -320,8 +328,9 @@ impl Variant {
     /// share one pipeline across levels.
     fn for_kind(self, kind: PassKind) -> Self {
         match kind {
-            PassKind::Correct | PassKind::CorrectAniso => self,
-            _ => Self(self.0 & !Self::CORRECTION_ONLY),
+            PassKind::Correct | PassKind::CorrectAniso => Self(self.0 & !Self::GATHER_ONLY),
+            PassKind::Gather | PassKind::GatherAniso => Self(self.0 & !Self::CORRECTION_ONLY),
+            _ => Self(self.0 & !(Self::CORRECTION_ONLY | Self::GATHER_ONLY)),
         }
     }
 
@@ -343,7 +352,8 @@ impl Variant {
 struct LazyPipeline {
     shader: &'static ShaderSource,
     module: std::sync::OnceLock<wgpu::ShaderModule>,
-    cells: [std::sync::OnceLock<wgpu::ComputePipeline>; Variant::COUNT],
+    /// On the heap: COUNT cells per pass would be a large stack value.
+    cells: Box<[std::sync::OnceLock<wgpu::ComputePipeline>]>,
 }
 
 impl LazyPipeline {
@@ -351,7 +361,9 @@ impl LazyPipeline {
         Self {
             shader,
             module: std::sync::OnceLock::new(),
-            cells: std::array::from_fn(|_| std::sync::OnceLock::new()),
+            cells: (0..Variant::COUNT)
+                .map(|_| std::sync::OnceLock::new())
+                .collect(),
         }
     }
 
@@ -498,9 +510,8 @@ impl PassPipelines {
         lazy.get(ctx, &self.pipeline_layout, variant.for_kind(kind))
     }
 
-    /// Builds the pipelines these dispatches use (each once), inside one error scope.
-    /// Built on several threads they took about as long on lavapipe (measured 2026-12-01,
-    /// 2 cores: 20-28 ms against 21-31 ms for a 512x512 synthesis's four), so one thread.
+    /// Builds the pipelines these dispatches use (each once), inside one error scope, on
+    /// this thread ([`GpuSynthesizer::prepare`] runs two of these side by side).
     pub(crate) fn prepare_dispatches(
         &self,
         ctx: &GpuContext,
@@ -542,6 +553,7 @@ impl PassPipelines {
         // when first used.
         let usual = PassParams {
             k: 2,
+            seam_blend: 1,
             ..Default::default()
         };
         let plain = Variant::of(&usual);
@@ -1807,5 +1819,31 @@ mod tests {
             [1.0, 0.0, 1.0, 1.0]
         );
         assert_eq!(v.for_kind(PassKind::CorrectAniso), v);
+        // The gathers' switches reach the gathers only.
+        let w = Variant::of(&PassParams {
+            nearest: 1,
+            seam_blend: 1,
+            ..p
+        });
+        let on = |v: Variant, n: &str| v.constants().iter().find(|(name, _)| *name == n).unwrap().1;
+        for kind in [PassKind::Gather, PassKind::GatherAniso] {
+            assert_eq!(
+                [
+                    on(w.for_kind(kind), "NEAREST"),
+                    on(w.for_kind(kind), "SEAM_BLEND")
+                ],
+                [1.0, 1.0]
+            );
+        }
+        for kind in [PassKind::CorrectAniso, PassKind::Upsample, PassKind::Advect] {
+            assert_eq!(
+                [
+                    on(w.for_kind(kind), "NEAREST"),
+                    on(w.for_kind(kind), "SEAM_BLEND")
+                ],
+                [0.0, 0.0]
+            );
+        }
+        assert_eq!(w.for_kind(PassKind::Correct), v);
     }
 }
