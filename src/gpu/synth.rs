@@ -531,6 +531,31 @@ impl PassPipelines {
         })
     }
 
+    /// Builds these dispatches' pipelines, the corrections' on a second thread while
+    /// this one builds the others and then runs `alongside` (host work). The
+    /// correction's pipeline takes the longest to build (lavapipe: 21 ms, 49 ms
+    /// anisometric, against 10 and 18 ms for all the others).
+    pub(crate) fn prepare_split(
+        &self,
+        ctx: &GpuContext,
+        dispatches: impl IntoIterator<Item = (PassKind, Variant)>,
+        alongside: impl FnOnce() -> Result<()>,
+    ) -> Result<()> {
+        let (heavy, light): (Vec<_>, Vec<_>) = dispatches
+            .into_iter()
+            .partition(|(kind, _)| matches!(kind, PassKind::Correct | PassKind::CorrectAniso));
+        std::thread::scope(|scope| {
+            let corrections = scope.spawn(|| self.prepare_dispatches(ctx, heavy));
+            let rest = self
+                .prepare_dispatches(ctx, light)
+                .and_then(|()| alongside());
+            let corrections = corrections
+                .join()
+                .unwrap_or_else(|_| Err(Error::Gpu("building a pipeline panicked".into())));
+            rest.and(corrections)
+        })
+    }
+
     /// Builds the pipelines of a plain 2D synthesis (isometric or anisometric).
     pub(crate) fn prepare(&self, ctx: &GpuContext, anisometric: bool) -> Result<()> {
         let kinds = if anisometric {
@@ -561,12 +586,13 @@ impl PassPipelines {
             full_distance: 1,
             ..usual
         });
-        self.prepare_dispatches(
+        self.prepare_split(
             ctx,
             kinds.map(|k| {
                 let correction = matches!(k, PassKind::Correct | PassKind::CorrectAniso);
                 (k, if correction { full } else { plain })
             }),
+            || Ok(()),
         )
     }
 }
@@ -1131,29 +1157,19 @@ impl GpuSynthesizer {
     pub fn prepare(&self, ctx: &GpuContext, params: &SynthParams) -> Result<()> {
         let plan = SynthPlan::new(&self.analysis, params)?;
         let schedule = plan.schedule(&self.analysis);
-        let (heavy, light): (Vec<_>, Vec<_>) = schedule
-            .iter()
-            .map(|d| (d.kind, Variant::of_dispatch(&plan, d)))
-            .partition(|(kind, _)| matches!(kind, PassKind::Correct | PassKind::CorrectAniso));
-        // The correction's pipeline takes the longest to build (lavapipe: 20 ms, 50 ms
-        // anisometric, against 10 and 18 ms for all the others); it is built on a second
-        // thread while this one builds the others and rasterizes the Jacobian field on
-        // the host (20-30 ms at 512x512), which the synthesis then finds in its cache.
-        std::thread::scope(|scope| {
-            let corrections = scope.spawn(|| self.pipelines.prepare_dispatches(ctx, heavy));
-            let rest = self
-                .pipelines
-                .prepare_dispatches(ctx, light)
-                .and_then(|()| {
-                    ctx.scoped(|| {
-                        self.jacobian_buffers(ctx, &plan);
-                    })
-                });
-            let corrections = corrections
-                .join()
-                .unwrap_or_else(|_| Err(Error::Gpu("building a pipeline panicked".into())));
-            rest.and(corrections)
-        })
+        self.pipelines.prepare_split(
+            ctx,
+            schedule
+                .iter()
+                .map(|d| (d.kind, Variant::of_dispatch(&plan, d))),
+            // The Jacobian field (20-30 ms at 512x512 on the host), which the synthesis
+            // then finds in its cache.
+            || {
+                ctx.scoped(|| {
+                    self.jacobian_buffers(ctx, &plan);
+                })
+            },
+        )
     }
 
     /// Synthesizes and submits; returns when the GPU has finished.
