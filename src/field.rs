@@ -395,7 +395,7 @@ pub fn rasterize_region(
     if let Field::Constant { .. } = field {
         return vec![quantize(&field.at(0.0, 0.0)); w * size[1] as usize];
     }
-    // Rows in parallel (trigonometry and a 2x2 SVD per pixel: ~100 ns each).
+    // Rows in parallel (trigonometry and a 2x2 SVD per pixel: about 40 ns each).
     crate::analysis::par_ranges(size[1] as usize, 0, |rows| {
         let mut out = Vec::with_capacity(rows.len() * w);
         for y in rows {
