@@ -274,7 +274,6 @@ impl Variant {
         "SEAM_BLEND",
     ];
     const K_SHIFT: u32 = 10;
-    const COUNT: usize = 1 << 13;
     /// The bits only the correction passes read: FULL_DISTANCE, KSET_INTERP, QUARTER,
     /// FINE_TABLES and k.
     const CORRECTION_ONLY: u16 = 0b1_1100_0110_0110;
@@ -352,8 +351,9 @@ impl Variant {
 struct LazyPipeline {
     shader: &'static ShaderSource,
     module: std::sync::OnceLock<wgpu::ShaderModule>,
-    /// On the heap: COUNT cells per pass would be a large stack value.
-    cells: Box<[std::sync::OnceLock<wgpu::ComputePipeline>]>,
+    /// The variants in use (a few of the 2^13 possible): each its own cell, so that
+    /// two threads build different variants at once and the same one only once.
+    cells: Mutex<std::collections::HashMap<u16, Arc<std::sync::OnceLock<wgpu::ComputePipeline>>>>,
 }
 
 impl LazyPipeline {
@@ -361,9 +361,7 @@ impl LazyPipeline {
         Self {
             shader,
             module: std::sync::OnceLock::new(),
-            cells: (0..Variant::COUNT)
-                .map(|_| std::sync::OnceLock::new())
-                .collect(),
+            cells: Default::default(),
         }
     }
 
@@ -373,8 +371,15 @@ impl LazyPipeline {
         ctx: &GpuContext,
         layout: &wgpu::PipelineLayout,
         variant: Variant,
-    ) -> &wgpu::ComputePipeline {
-        self.cells[variant.0 as usize].get_or_init(|| {
+    ) -> wgpu::ComputePipeline {
+        let cell = self
+            .cells
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .entry(variant.0)
+            .or_default()
+            .clone();
+        let pipeline = cell.get_or_init(|| {
             let s = self.shader;
             let module = self.module.get_or_init(|| {
                 ctx.device
@@ -396,7 +401,8 @@ impl LazyPipeline {
                     },
                     cache: None,
                 })
-        })
+        });
+        pipeline.clone()
     }
 }
 
@@ -494,7 +500,7 @@ impl PassPipelines {
     }
 
     /// The pipeline of a pass, built now if needed.
-    fn get(&self, ctx: &GpuContext, kind: PassKind, variant: Variant) -> &wgpu::ComputePipeline {
+    fn get(&self, ctx: &GpuContext, kind: PassKind, variant: Variant) -> wgpu::ComputePipeline {
         let lazy = match kind {
             PassKind::Upsample => &self.upsample,
             PassKind::Jitter => &self.jitter,
@@ -1008,7 +1014,7 @@ impl GpuSynthesizer {
                 if tx == 0 || ty == 0 {
                     continue;
                 }
-                pass.set_pipeline(pipeline);
+                pass.set_pipeline(&pipeline);
                 pass.set_bind_group(
                     0,
                     group,
@@ -1023,15 +1029,12 @@ impl GpuSynthesizer {
                 let group = make_bind_group(map.colors, map.view, tables);
                 let level = plan.levels.len() - 1;
                 let variant = Variant::of(&gather_params).for_kind(PassKind::Gather);
-                pass.set_pipeline(if map.magnify > 1 {
-                    self.pipelines
-                        .magnify
-                        .get(ctx, &self.pipelines.pipeline_layout, variant)
+                let lazy = if map.magnify > 1 {
+                    &self.pipelines.magnify
                 } else {
-                    self.pipelines
-                        .gather_map
-                        .get(ctx, &self.pipelines.pipeline_layout, variant)
-                });
+                    &self.pipelines.gather_map
+                };
+                pass.set_pipeline(&lazy.get(ctx, &self.pipelines.pipeline_layout, variant));
                 pass.set_bind_group(
                     0,
                     &group,
