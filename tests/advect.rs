@@ -699,3 +699,69 @@ fn surface_advection_gpu_matches_cpu() {
         .unwrap();
     assert_eq!(ok.len(), 64 * 64);
 }
+
+/// With one correction pass per frame, the finest level's similarity sets follow
+/// `sets_every` over the frames: each frame runs one of its two finest subpasses with
+/// them (k) and one without (k = 1), and every pixel class has them at every other
+/// correction (every correction with `sets_every` 1).
+#[test]
+fn advection_frames_take_turns_with_the_similarity_sets() {
+    let ex = common::gravel_crop(32);
+    let a = analyze(&ex, &AnalysisOptions::default(), |_| {}).unwrap();
+    let o = AdvectOptions::default();
+    for sets_every in [1u32, 2] {
+        let params = Advection::synthesis_params(&SynthParams {
+            width: 40,
+            height: 24,
+            sets_every,
+            ..Default::default()
+        });
+        let plan = SynthPlan::new(&a, &params).unwrap();
+        let finest = plan.levels.len() - 1;
+        let mut per_class: std::collections::HashMap<[i32; 2], Vec<i32>> = Default::default();
+        for frame in 0..8u64 {
+            let ks: Vec<(i32, [i32; 2])> = plan
+                .advect_schedule(&a, &o, frame)
+                .iter()
+                .filter(|d| {
+                    d.level == finest && d.kind == texsyn::passes::plan::PassKind::CorrectAniso
+                })
+                .map(|d| (d.params.k, d.params.parity))
+                .collect();
+            assert_eq!(ks.len(), 2, "frame {frame}");
+            let with_sets = ks.iter().filter(|(k, _)| *k == a.k as i32).count();
+            assert_eq!(
+                with_sets,
+                if sets_every == 1 { 2 } else { 1 },
+                "frame {frame}"
+            );
+            for (k, parity) in ks {
+                per_class.entry(parity).or_default().push(k);
+            }
+        }
+        assert_eq!(per_class.len(), 4);
+        for (parity, ks) in per_class {
+            let want: Vec<i32> = (0..ks.len())
+                .map(|i| {
+                    if sets_every == 1 || i % 2 == 0 {
+                        a.k as i32
+                    } else {
+                        1
+                    }
+                })
+                .collect();
+            // Each class starts with or without them, then alternates.
+            let flipped: Vec<i32> = want
+                .iter()
+                .map(|&k| {
+                    if sets_every == 1 {
+                        k
+                    } else {
+                        a.k as i32 + 1 - k
+                    }
+                })
+                .collect();
+            assert!(ks == want || ks == flipped, "class {parity:?}: {ks:?}");
+        }
+    }
+}

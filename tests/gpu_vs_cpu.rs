@@ -67,11 +67,11 @@ fn compare_pass_by_pass(a: Arc<Analysis>, params: &SynthParams) {
     let mut checked = std::collections::HashSet::new();
     for (i, d) in schedule.iter().enumerate() {
         run_cpu(&a, &schedule[i..i + 1], &mut cpu, &jac);
-        // Check the first dispatch of each kind at each level, and every dispatch at
-        // the finest level.
+        // Check the first dispatch of each kind at each level (a correction with and
+        // without the similarity sets: k and 1), and every dispatch at the finest level.
         let finest = d.level + 1 == plan.levels.len();
         let gather = matches!(d.kind, PassKind::Gather | PassKind::GatherAniso);
-        if !(checked.insert((d.kind, d.level)) || finest) || gather {
+        if !(checked.insert((d.kind, d.level, d.params.k)) || finest) || gather {
             continue;
         }
         let g = gpu.run_prefix(ctx(), params, i + 1).unwrap();
@@ -464,6 +464,53 @@ fn tileable_output_matches_cpu_and_wraps() {
         ..Default::default()
     };
     assert!(synthesize_cpu(&analysis(false, 2), &bad).is_err());
+}
+
+/// The similarity-set candidates are scored on every `sets_every`-th pass of a level
+/// (the others are the correction with k = 1); 1 scores them on every pass, and values
+/// outside 1..=16 are refused.
+#[test]
+fn similarity_sets_on_every_nth_pass() {
+    let a = analysis(false, 3);
+    let ks = |sets_every: u32| -> Vec<Vec<i32>> {
+        let params = SynthParams {
+            width: 24,
+            height: 20,
+            passes: 4,
+            finest_passes: 2,
+            sets_every,
+            ..Default::default()
+        };
+        let plan = SynthPlan::new(&a, &params).unwrap();
+        let mut per_level = vec![Vec::new(); plan.levels.len()];
+        for d in plan.schedule(&a) {
+            if d.kind == PassKind::Correct {
+                per_level[d.level].push(d.params.k);
+            }
+        }
+        per_level
+    };
+    for (sets_every, pattern) in [(1, [3, 3, 3, 3]), (2, [3, 1, 3, 1]), (3, [3, 1, 1, 3])] {
+        let levels = ks(sets_every);
+        for (level, k) in levels.iter().enumerate().skip(1) {
+            // Four subpasses per pass.
+            let passes: Vec<i32> = k.chunks(4).map(|c| c[0]).collect();
+            assert!(k.chunks(4).all(|c| c.iter().all(|&x| x == c[0])));
+            let want = if level + 1 == levels.len() {
+                &pattern[..2]
+            } else {
+                &pattern[..]
+            };
+            assert_eq!(passes, want, "sets every {sets_every}, level {level}");
+        }
+    }
+    for bad in [0, 17] {
+        let params = SynthParams {
+            sets_every: bad,
+            ..Default::default()
+        };
+        assert!(SynthPlan::new(&a, &params).is_err(), "sets_every {bad}");
+    }
 }
 
 /// Correction subpasses that skip the margin rings no longer able to reach the output

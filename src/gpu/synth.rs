@@ -537,8 +537,8 @@ impl PassPipelines {
         })
     }
 
-    /// Builds these dispatches' pipelines, the corrections' on a second thread while
-    /// this one builds the others and then runs `alongside` (host work). The
+    /// Builds these dispatches' pipelines, each correction variant's on a thread of its
+    /// own while this one builds the others and then runs `alongside` (host work). The
     /// correction's pipeline takes the longest to build (lavapipe: 21 ms, 49 ms
     /// anisometric, against 10 and 18 ms for all the others).
     pub(crate) fn prepare_split(
@@ -550,15 +550,31 @@ impl PassPipelines {
         let (heavy, light): (Vec<_>, Vec<_>) = dispatches
             .into_iter()
             .partition(|(kind, _)| matches!(kind, PassKind::Correct | PassKind::CorrectAniso));
+        // One thread per correction variant: a default synthesis has two (with and
+        // without the similarity sets, `SynthParams::sets_every`), and one after the
+        // other they took twice as long.
+        let mut heavy_variants: Vec<(PassKind, Variant)> = Vec::new();
+        for (kind, variant) in heavy {
+            let kv = (kind, variant.for_kind(kind));
+            if !heavy_variants.contains(&kv) {
+                heavy_variants.push(kv);
+            }
+        }
         std::thread::scope(|scope| {
-            let corrections = scope.spawn(|| self.prepare_dispatches(ctx, heavy));
-            let rest = self
+            let corrections: Vec<_> = heavy_variants
+                .iter()
+                .map(|&kv| scope.spawn(move || self.prepare_dispatches(ctx, [kv])))
+                .collect();
+            let mut result = self
                 .prepare_dispatches(ctx, light)
                 .and_then(|()| alongside());
-            let corrections = corrections
-                .join()
-                .unwrap_or_else(|_| Err(Error::Gpu("building a pipeline panicked".into())));
-            rest.and(corrections)
+            for c in corrections {
+                let built = c
+                    .join()
+                    .unwrap_or_else(|_| Err(Error::Gpu("building a pipeline panicked".into())));
+                result = result.and(built);
+            }
+            result
         })
     }
 
@@ -592,14 +608,22 @@ impl PassPipelines {
             full_distance: 1,
             ..usual
         });
-        self.prepare_split(
-            ctx,
-            kinds.map(|k| {
+        // The passes without the similarity sets (`SynthParams::sets_every`) are the
+        // correction with k = 1.
+        let full_coherent = Variant::of(&PassParams {
+            full_distance: 1,
+            k: 1,
+            ..usual
+        });
+        let mut dispatches: Vec<(PassKind, Variant)> = kinds
+            .iter()
+            .map(|&k| {
                 let correction = matches!(k, PassKind::Correct | PassKind::CorrectAniso);
                 (k, if correction { full } else { plain })
-            }),
-            || Ok(()),
-        )
+            })
+            .collect();
+        dispatches.push((kinds[2], full_coherent));
+        self.prepare_split(ctx, dispatches, || Ok(()))
     }
 }
 
