@@ -154,49 +154,6 @@ fn prediction_read(k: vec2<i32>) -> Vec8 {
     return bilinear_et(k);
 }
 
-// The synthesized neighbourhood of a pixel: the four diagonals' prediction sums and
-// their projection (projected distance only). By value, like Vec8.
-struct Hood {
-    p0: Vec8,
-    p1: Vec8,
-    p2: Vec8,
-    p3: Vec8,
-    ns: Vec8,
-}
-
-// The full distance of a candidate, at its nearest exemplar pixel.
-fn full_distance_at(hd: Hood, c: vec2<i32>) -> u32 {
-    let h = params.step;
-    let t = nearest_texel(c);
-    return full_term(hd.p0.lo, hd.p0.hi, t + h) + full_term(hd.p1.lo, hd.p1.hi, t + vec2<i32>(h.x, -h.y))
-        + full_term(hd.p2.lo, hd.p2.hi, t + vec2<i32>(-h.x, h.y)) + full_term(hd.p3.lo, hd.p3.hi, t - h);
-}
-
-// Distance of the current value or a coherent candidate: the projected one at the
-// position itself (bilinear).
-fn coherent_distance(hd: Hood, c: vec2<i32>) -> u32 {
-    if (FULL_DISTANCE) {
-        return full_distance_at(hd, c);
-    }
-    return projected_distance_at(hd.ns.lo, hd.ns.hi, c);
-}
-
-// Distance of a similarity-set candidate: the projected one at its nearest texel (see
-// the mirror), or interpolated like the coherent ones with KSET_INTERP.
-fn set_distance(hd: Hood, c: vec2<i32>) -> u32 {
-    if (FULL_DISTANCE) {
-        return full_distance_at(hd, c);
-    }
-    if (KSET_INTERP) {
-        return projected_distance_at(hd.ns.lo, hd.ns.hi, c);
-    }
-    let t = nearest_texel(c);
-    if (FINE_TABLES) {
-        return projected_distance_to(hd.ns.lo, hd.ns.hi, unpack_vec8(qe[fine_index(t << vec2<u32>(QUARTER_BITS))]));
-    }
-    return projected_distance(hd.ns.lo, hd.ns.hi, t);
-}
-
 @compute @workgroup_size(8, 8, 1)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     opaque = i32(gid.z);
@@ -233,42 +190,31 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         ns_hi = ns_hi >> vec4<u32>(params.shift);
     }
 
-    let hood = Hood(p0, p1, p2, p3, Vec8(ns_lo, ns_hi));
     var best = n.zz;
     var best_d = 0xffffffffu;
     if (is_valid_fx(best)) {
-        best_d = coherent_distance(hood, best);
+        if (full) {
+            let n = nearest_texel(best);
+            best_d = full_term(s0l, s0h, n + h) + full_term(s1l, s1h, n + vec2<i32>(h.x, -h.y))
+                + full_term(s2l, s2h, n + vec2<i32>(-h.x, h.y)) + full_term(s3l, s3h, n - h);
+        } else {
+            best_d = projected_distance_at(ns_lo, ns_hi, best);
+        }
     }
-    // Without QUARTER, k from the uniforms, not the K constant: the passes without the
-    // similarity sets (k = 1) share this pipeline (crate::gpu::synth::Variant::for_kind).
-    // The coherent candidate comes first, then the sets in a loop whose bound is
-    // uniform, so with k = 1 it ends at once and its body has no branch on i (lavapipe
-    // runs both sides of such a branch). With QUARTER (advection frames), K.
-    var kk = params.k | opaque;
-    if (QUARTER) {
-        kk = K;
-    }
-    let km1 = u32(kk - 1);
+    let km1 = u32(K - 1);
     for (var dy = -1; dy <= 1; dy++) {
         for (var dx = -1; dx <= 1; dx++) {
             let dd = vec2<i32>(dx, dy);
             let s = neighbour(n, dd);
             let hjd = scaled_jd(params.spacing, j, dd);
-            let raw0 = s - hjd;
-            if (is_valid_fx(raw0)) {
-                let c = fit_coord(raw0);
-                if (any(c != best)) {
-                    let dist = coherent_distance(hood, c);
-                    if (dist < best_d) {
-                        best_d = dist;
-                        best = c;
-                    }
-                }
-            }
             let obase = params.off_base + ex_index(nearest_texel(s)) * km1;
-            for (var i = 1; i < kk; i++) {
-                let w = offsets[obase + u32(i - 1)];
-                let raw = s + (vec2<i32>(lo16(w), hi16(w)) << vec2<u32>(COORD_FRAC)) - hjd;
+            for (var i = 0; i < K; i++) {
+                var o = vec2<i32>(0);
+                if (i > 0) {
+                    let w = offsets[obase + u32(i - 1)];
+                    o = vec2<i32>(lo16(w), hi16(w)) << vec2<u32>(COORD_FRAC);
+                }
+                let raw = s + o - hjd;
                 if (!is_valid_fx(raw)) {
                     continue;
                 }
@@ -276,8 +222,27 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
                 if (all(c == best)) {
                     continue;
                 }
-                var dist = set_distance(hood, c);
-                dist += (dist >> 4u) * params.coherence;
+                var dist: u32;
+                if (full) {
+                    let n = nearest_texel(c);
+                    dist = full_term(s0l, s0h, n + h) + full_term(s1l, s1h, n + vec2<i32>(h.x, -h.y))
+                        + full_term(s2l, s2h, n + vec2<i32>(-h.x, h.y)) + full_term(s3l, s3h, n - h);
+                } else {
+                    // Similarity-set candidates at their nearest texel (see the mirror).
+                    if (i > 0 && !KSET_INTERP) {
+                        let t = nearest_texel(c);
+                        if (FINE_TABLES) {
+                            dist = projected_distance_to(ns_lo, ns_hi, unpack_vec8(qe[fine_index(t << vec2<u32>(QUARTER_BITS))]));
+                        } else {
+                            dist = projected_distance(ns_lo, ns_hi, t);
+                        }
+                    } else {
+                        dist = projected_distance_at(ns_lo, ns_hi, c);
+                    }
+                }
+                if (i > 0) {
+                    dist += (dist >> 4u) * params.coherence;
+                }
                 if (dist < best_d) {
                     best_d = dist;
                     best = c;

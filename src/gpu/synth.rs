@@ -274,13 +274,11 @@ impl Variant {
         "SEAM_BLEND",
     ];
     const K_SHIFT: u32 = 10;
-    const K_BITS: u16 = 0b111 << Self::K_SHIFT;
     /// The bits only the correction passes read: FULL_DISTANCE, KSET_INTERP, QUARTER,
     /// FINE_TABLES and k.
     const CORRECTION_ONLY: u16 = 0b1_1100_0110_0110;
     /// The bits only the gathers read: NEAREST and SEAM_BLEND.
     const GATHER_ONLY: u16 = 0b11 << 8;
-    const QUARTER: u16 = 1 << 5;
     const FINE_TABLES: u16 = 1 << 6;
     const IDENTITY_J: u16 = 1 << 7;
 
@@ -327,21 +325,9 @@ impl Variant {
 
     /// The switches only the correction passes read are reset for the others, so they
     /// share one pipeline across levels.
-    /// The anisometric correction without quarter-pixel reads (synthesis) takes k from
-    /// its uniforms (a loop bound), so its passes with and without the similarity sets
-    /// share a pipeline: its build is the costliest (49 ms on lavapipe), and a second
-    /// one cost an anisometric synthesis about what skipping the sets saved. With
-    /// quarter-pixel reads (advection frames, built once for many frames) k stays a
-    /// constant, which unrolls the loop: a 512x512 frame's finest correction measured
-    /// 51-57 ms with k from the uniforms, 41-46 ms with the constant (48-52 ms with
-    /// the sets on every subpass).
     fn for_kind(self, kind: PassKind) -> Self {
         match kind {
-            PassKind::Correct => Self(self.0 & !Self::GATHER_ONLY),
-            PassKind::CorrectAniso if self.0 & Self::QUARTER == 0 => {
-                Self(self.0 & !(Self::GATHER_ONLY | Self::K_BITS))
-            }
-            PassKind::CorrectAniso => Self(self.0 & !Self::GATHER_ONLY),
+            PassKind::Correct | PassKind::CorrectAniso => Self(self.0 & !Self::GATHER_ONLY),
             PassKind::Gather | PassKind::GatherAniso => Self(self.0 & !Self::CORRECTION_ONLY),
             _ => Self(self.0 & !(Self::CORRECTION_ONLY | Self::GATHER_ONLY)),
         }
@@ -1875,24 +1861,7 @@ mod tests {
             ],
             [1.0, 0.0, 1.0, 1.0]
         );
-        assert_eq!(v.for_kind(PassKind::Correct), v);
-        // The anisometric correction takes k from the uniforms (one pipeline for every
-        // k), except with quarter-pixel reads (advection frames), where it is K.
-        let k_of = |v: Variant| {
-            v.constants()
-                .iter()
-                .find(|(name, _)| *name == "K")
-                .unwrap()
-                .1
-        };
-        assert_eq!(k_of(v.for_kind(PassKind::CorrectAniso)), 1.0);
-        assert_eq!(
-            v.for_kind(PassKind::CorrectAniso),
-            Variant::of(&PassParams { k: 1, ..p }).for_kind(PassKind::CorrectAniso)
-        );
-        let q = Variant::of(&PassParams { quarter: 1, ..p });
-        assert_eq!(k_of(q.for_kind(PassKind::CorrectAniso)), 3.0);
-        assert_eq!(q.for_kind(PassKind::CorrectAniso), q);
+        assert_eq!(v.for_kind(PassKind::CorrectAniso), v);
         // The gathers' switches reach the gathers only.
         let w = Variant::of(&PassParams {
             nearest: 1,
