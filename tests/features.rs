@@ -743,14 +743,11 @@ fn energy(ex: &Exemplar, opts: AnalysisOptions, size: u32, seed: u32) -> [f64; 3
 }
 
 /// On the bundled brick photograph with a mask of its (bright) mortar, the feature
-/// channel costs little texture energy (the mortar is already obvious in colour, so the
-/// channel mostly competes with colour for the 8 dimensions; measured at the default
-/// weight over these two seeds: +1% at full and half resolution, +9% at quarter
-/// resolution with the similarity sets on every pass, -16%, -9% and -4% with them on
-/// every other pass, the default since the nineteenth session), and the colour
-/// appearance space is worse than the neighbourhood one (+14% at full resolution with
-/// the default; at 512x512 on six other exemplars +20% to +135%, README). The figures
-/// are printed.
+/// channel costs little texture energy (measured at the default weight: +1% at full and
+/// half resolution, +9% at quarter resolution over these two seeds; the mortar is already
+/// obvious in colour, so the channel mostly competes with colour for the 8 dimensions),
+/// and the colour appearance space is clearly worse than the neighbourhood one (+47% at
+/// full resolution). The figures are printed.
 #[test]
 fn feature_mask_costs_little_texture_energy() {
     let ex = texsyn::image_io::load_exemplar(Path::new(BRICK)).unwrap();
@@ -795,7 +792,7 @@ fn feature_mask_costs_little_texture_energy() {
         );
     }
     assert!(
-        colour[0] > 1.1 * plain[0],
+        colour[0] > 1.2 * plain[0],
         "the colour space is not clearly worse than the appearance space: {colour:?} vs {plain:?}"
     );
 }

@@ -608,21 +608,13 @@ impl PassPipelines {
             full_distance: 1,
             ..usual
         });
-        // The passes without the similarity sets (`SynthParams::sets_every`) are the
-        // correction with k = 1.
-        let full_coherent = Variant::of(&PassParams {
-            full_distance: 1,
-            k: 1,
-            ..usual
-        });
-        let mut dispatches: Vec<(PassKind, Variant)> = kinds
+        let dispatches: Vec<(PassKind, Variant)> = kinds
             .iter()
             .map(|&k| {
                 let correction = matches!(k, PassKind::Correct | PassKind::CorrectAniso);
                 (k, if correction { full } else { plain })
             })
             .collect();
-        dispatches.push((kinds[2], full_coherent));
         self.prepare_split(ctx, dispatches, || Ok(()))
     }
 }

@@ -40,11 +40,15 @@ pub struct SynthParams {
     pub finest_passes: u32,
     /// The similarity-set candidates (`k - 1` per 3x3 neighbour) are scored on every
     /// `sets_every`-th correction pass of a level (its passes 1, 1 + n, ...); the other
-    /// passes score the coherent candidates only. 1 is the paper (every pass). Default 2:
-    /// on 12 exemplars x 2 seeds at 512x512 the texture energy and colour-histogram
-    /// distance stayed within 0.3% (medians) of every pass, for about a quarter less
-    /// GPU time (the set candidates are most of the correction's work, since the
-    /// coherent ones mostly repeat the current value and are skipped). 1..=16.
+    /// passes score the coherent candidates only. 1..=16; default 1, the paper (every
+    /// pass). 2 measured (12 exemplars x 2 seeds at 512x512, lavapipe): texture energy and
+    /// colour-histogram distance within 0.3% of every pass (medians; the bundled brick
+    /// +2-3%), about a fifth less GPU time for an isometric synthesis (the set candidates
+    /// are most of the correction's work: the coherent ones mostly repeat the current
+    /// value and are skipped). Not the default: an anisometric synthesis builds a second
+    /// correction pipeline for it, which takes back most of its gain from an analysis
+    /// file, and an advection frame, which gains less, would cost more than half of the
+    /// cheaper synthesis (README, nineteenth session).
     pub sets_every: u32,
     /// Bias towards coherent candidates: the others' distance is multiplied by
     /// `1 + coherence` (0 to 4).
@@ -103,7 +107,7 @@ impl Default for SynthParams {
             randomness: Vec::new(),
             passes: 4,
             finest_passes: 0,
-            sets_every: 2,
+            sets_every: 1,
             coherence: 1.0,
             distance: DistanceMode::Mixed,
             field: None,
