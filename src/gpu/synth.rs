@@ -550,8 +550,8 @@ impl PassPipelines {
         let (heavy, light): (Vec<_>, Vec<_>) = dispatches
             .into_iter()
             .partition(|(kind, _)| matches!(kind, PassKind::Correct | PassKind::CorrectAniso));
-        // One thread per correction variant: a default synthesis has two (with and
-        // without the similarity sets, `SynthParams::sets_every`), and one after the
+        // One thread per correction variant: with `SynthParams::sets_every` above 1 a
+        // synthesis has two (with and without the similarity sets), and one after the
         // other they took twice as long.
         let mut heavy_variants: Vec<(PassKind, Variant)> = Vec::new();
         for (kind, variant) in heavy {
@@ -608,14 +608,14 @@ impl PassPipelines {
             full_distance: 1,
             ..usual
         });
-        let dispatches: Vec<(PassKind, Variant)> = kinds
-            .iter()
-            .map(|&k| {
+        self.prepare_split(
+            ctx,
+            kinds.map(|k| {
                 let correction = matches!(k, PassKind::Correct | PassKind::CorrectAniso);
                 (k, if correction { full } else { plain })
-            })
-            .collect();
-        self.prepare_split(ctx, dispatches, || Ok(()))
+            }),
+            || Ok(()),
+        )
     }
 }
 
