@@ -204,6 +204,13 @@ impl SessionBuilder {
         self
     }
 
+    /// A texture of its own with thin margins, faster than an exact window of the
+    /// unbounded texture (default `false`; see [`SynthParams::standalone`]).
+    pub fn standalone(mut self, on: bool) -> Self {
+        self.params.standalone = on;
+        self
+    }
+
     /// Blend colours across patch seams (default `true`; see [`SynthParams::seam_blend`]).
     pub fn seam_blend(mut self, on: bool) -> Self {
         self.params.seam_blend = on;

@@ -877,6 +877,19 @@ fn controls_end_to_end_and_their_bad_inputs() {
     .save(dir.path("height.png"))
     .unwrap();
     ok(&dir, &["analyze", GRAVEL, "-o", "g.tsa"]);
+    ok(
+        &dir,
+        &[
+            "synth",
+            "g.tsa",
+            "-o",
+            "sa.png",
+            "--size",
+            "40x30",
+            "--standalone",
+        ],
+    );
+    assert_eq!(png_size(&dir.path("sa.png")), (40, 30));
 
     let base = ["synth", GRAVEL, "-o", "out.png", "--size", "24"];
     let with = |extra: &[&str]| -> Vec<String> {
@@ -901,6 +914,8 @@ fn controls_end_to_end_and_their_bad_inputs() {
         2,
         "cannot be used",
     );
+    fails_with(&["--standalone", "--window", "3,4"], 2, "cannot be used");
+    fails_with(&["--standalone", "--tileable-output"], 2, "cannot be used");
     fails(
         &dir,
         &[

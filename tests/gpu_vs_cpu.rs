@@ -121,6 +121,44 @@ fn tileable_k3_window_matches_cpu_pass_by_pass() {
     compare_pass_by_pass(analysis(true, 3), &params);
 }
 
+/// Standalone textures (thin margins) follow the same plan on both sides, isometric and
+/// along a field; their regions are smaller than an exact window's.
+#[test]
+fn standalone_matches_cpu_pass_by_pass() {
+    let a = analysis(false, 2);
+    // Large enough that the second-finest level's region takes the thin margin (its
+    // coarser levels keep the full one).
+    let exact = SynthParams {
+        width: 80,
+        height: 70,
+        seed: 4,
+        ..Default::default()
+    };
+    let standalone = SynthParams {
+        standalone: true,
+        ..exact.clone()
+    };
+    let count = |p: &SynthParams| SynthPlan::new(&a, p).unwrap().coord_count;
+    assert!(
+        10 * count(&standalone) < 9 * count(&exact),
+        "standalone {} coordinates, exact {}",
+        count(&standalone),
+        count(&exact)
+    );
+    compare_pass_by_pass(a.clone(), &standalone);
+    compare_pass_by_pass(
+        a,
+        &SynthParams {
+            field: Some(texsyn::field::Field::Constant {
+                angle: 0.4,
+                scale: [1.2, 0.9],
+                shear: 0.0,
+            }),
+            ..standalone
+        },
+    );
+}
+
 #[test]
 fn k1_three_passes_custom_randomness_match_cpu() {
     let a = analysis(false, 1);
@@ -609,6 +647,20 @@ fn windows_assemble_into_the_whole_output() {
         };
         let maps = [map.clone()];
         let whole = gpu.synthesize_with_maps(ctx(), &params, &maps).unwrap();
+        // Pieces are exact windows even when a standalone texture is asked for: a
+        // standalone piece would not meet its neighbours.
+        let standalone = SynthParams {
+            standalone: true,
+            ..params.clone()
+        };
+        let pieces = gpu
+            .synthesize_in_windows_sized(ctx(), &standalone, &maps, 16, &mut |_, _| {})
+            .unwrap();
+        assert_eq!(
+            pieces, whole,
+            "standalone in windows, field {:?}",
+            params.field
+        );
         let mut calls = Vec::new();
         let tiled = gpu
             .synthesize_in_windows_sized(ctx(), &params, &maps, 16, &mut |d, n| calls.push((d, n)))

@@ -69,6 +69,68 @@ fn grass_quality() {
     check("grass");
 }
 
+/// A standalone texture (thin margins) is as good as the exact window of the same seed,
+/// is not that window (its edges saw clamped reads), and computes far fewer
+/// coordinates.
+#[test]
+fn standalone_texture_is_as_good_as_an_exact_window() {
+    let ctx = texsyn::gpu::GpuContext::headless().unwrap();
+    let ex = texsyn::image_io::load_exemplar(std::path::Path::new("assets/gravel.png")).unwrap();
+    let a =
+        std::sync::Arc::new(texsyn::analysis::analyze(&ex, &Default::default(), |_| {}).unwrap());
+    let gpu = texsyn::gpu::synth::GpuSynthesizer::new(&ctx, a.clone()).unwrap();
+    let exf = FloatImage::from_exemplar(&ex);
+    let (w, h) = (160u32, 144u32);
+    let mut ratios = Vec::new();
+    for seed in [21, 22] {
+        let exact = texsyn::SynthParams {
+            width: w,
+            height: h,
+            seed,
+            ..Default::default()
+        };
+        let standalone = texsyn::SynthParams {
+            standalone: true,
+            ..exact.clone()
+        };
+        let count = |p: &texsyn::SynthParams| {
+            texsyn::passes::SynthPlan::new(&a, p).unwrap().coord_count as f64
+        };
+        assert!(
+            count(&standalone) < 0.8 * count(&exact),
+            "standalone {} coordinates, exact {}",
+            count(&standalone),
+            count(&exact)
+        );
+        let run = |p: &texsyn::SynthParams| gpu.synthesize_to_host(&ctx, p).unwrap();
+        let (e, s) = (run(&exact), run(&standalone));
+        assert_ne!(
+            e.coords, s.coords,
+            "seed {seed}: the standalone texture is another one"
+        );
+        let energy = |t: &texsyn::Synthesis| {
+            let out = FloatImage::from_rgba8(w, h, &t.colors).unwrap().to_grey();
+            quality::texture_energy(&exf, &out, 3).unwrap()
+        };
+        let (ee, es) = (energy(&e), energy(&s));
+        let hist = quality::histogram_distance(
+            &exf,
+            &FloatImage::from_rgba8(w, h, &s.colors).unwrap().to_grey(),
+        )
+        .unwrap();
+        let v = quality::verbatim_stats(&s.coords, w, h, ex.width, ex.height, a.tileable).unwrap();
+        eprintln!("seed {seed}: energy exact {ee:.5}, standalone {es:.5}; histogram {hist:?}; verbatim {v:?}");
+        assert!(hist.iter().all(|&d| d < 0.03), "histogram {hist:?}");
+        assert!(v.largest_region_fraction < 0.3, "{v:?}");
+        ratios.push(es / ee);
+    }
+    let mean = ratios.iter().sum::<f64>() / ratios.len() as f64;
+    assert!(
+        (0.9..1.1).contains(&mean),
+        "standalone / exact energy {ratios:?}"
+    );
+}
+
 #[test]
 fn tileable_output_has_no_wrap_seam() {
     // Mean over seeds of the wrap-around seam strength relative to interior neighbour

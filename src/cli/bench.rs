@@ -72,6 +72,11 @@ pub struct BenchArgs {
     #[arg(long, value_name = "MODE", default_value = "mixed", value_parser = super::parse_distance)]
     pub distance: texsyn::DistanceMode,
 
+    /// Time standalone textures (as `texsyn synth --standalone`): thin margins instead of
+    /// the exact windows of the unbounded texture
+    #[arg(long)]
+    pub standalone: bool,
+
     /// Anisometric synthesis along a field (same SPEC as `texsyn synth --field`; a map
     /// from a file must have every benchmarked size, so give a single --sizes with it)
     #[arg(long, value_name = "SPEC", value_parser = super::field::parse_field)]
@@ -221,8 +226,15 @@ pub fn run(ui: &Ui, args: BenchArgs) -> CliResult<()> {
         fmt_duration(upload)
     ))?;
     ui.out(format!(
-        "synthesis: {} passes ({} at the finest level), similarity sets every {}, {:?} distance, seed {}; {} warm-up + {} timed runs per size; GPU = submit + wait, no read-back",
-        args.passes, args.finest_passes, args.sets_every, args.distance, args.seed, args.warmup, args.runs
+        "synthesis: {} passes ({} at the finest level), similarity sets every {}, {:?} distance, {}, seed {}; {} warm-up + {} timed runs per size; GPU = submit + wait, no read-back",
+        args.passes,
+        args.finest_passes,
+        args.sets_every,
+        args.distance,
+        if args.standalone { "standalone textures" } else { "exact windows" },
+        args.seed,
+        args.warmup,
+        args.runs
     ))?;
     ui.out(match &args.field {
         Some(f) => format!("field: {}", f.spec()),
@@ -248,6 +260,7 @@ pub fn run(ui: &Ui, args: BenchArgs) -> CliResult<()> {
             finest_passes: args.finest_passes,
             sets_every: args.sets_every,
             distance: args.distance,
+            standalone: args.standalone,
             field: match (&file_field, &args.field) {
                 (Some(f), _) => Some(f.clone()),
                 (None, Some(f)) => Some(f.resolve([0, 0], w, h)?),

@@ -132,6 +132,14 @@ pub struct SynthArgs {
     #[arg(long, value_name = "X,Y", default_value = "0,0", value_parser = parse_window, allow_hyphen_values = true)]
     pub window: [i32; 2],
 
+    /// A texture of its own instead of a window of the infinite texture: each level
+    /// computes 2 pixels of context beyond the output instead of the 4 per correction
+    /// pass that make windows agree. Faster (GPU time about 15% less at 512x512, 45% at
+    /// 256x256 on lavapipe) at the same quality, but the output no longer fits together
+    /// with --window pieces; not combinable with --window or --tileable-output
+    #[arg(long, conflicts_with_all = ["window", "tileable_output"])]
+    pub standalone: bool,
+
     /// Also write the exemplar coordinate of every output pixel, as a float EXR
     /// (R = x, G = y)
     #[arg(long, value_name = "FILE.exr")]
@@ -520,6 +528,7 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
         tileable_output: args.tileable_output,
         surface: None,
         seam_blend: !args.no_seam_blend,
+        standalone: args.standalone,
     };
     // Validate the parameters before uploading anything.
     texsyn::passes::SynthPlan::new(&analysis, &params)?;

@@ -183,7 +183,8 @@ impl Advection {
 
     /// The parameters frame 0 is synthesized with (and every frame's plan is made
     /// from): `params` made anisometric (the identity field where it has none), without
-    /// seam blending and with at least one correction pass on the finest level.
+    /// seam blending, with at least one correction pass on the finest level and with
+    /// the full margins (not [`SynthParams::standalone`]).
     pub fn synthesis_params(params: &SynthParams) -> SynthParams {
         let mut p = params.clone();
         // Advected coordinates have several times the seams of a synthesis; blending
@@ -194,6 +195,7 @@ impl Advection {
         // correction lowers frame 0's energy, 0.00198 against 0.00214 on gravel), and its
         // region keeps the margin of a corrected level, which the flow carries into view.
         p.finest_passes = p.finest_passes.max(1);
+        p.standalone = false;
         if !p.anisometric() {
             p.field = Some(Field::Constant {
                 angle: 0.0,

@@ -1247,9 +1247,11 @@ impl GpuSynthesizer {
             ));
         }
         let (w, h) = (params.width, params.height);
+        // Windows must fit together: each is exact (see `synthesize_in_windows_sized`).
         let window = |side: u32| SynthParams {
             width: side.min(w),
             height: side.min(h),
+            standalone: false,
             ..params.clone()
         };
         let mut side = 2048u32;
@@ -1309,10 +1311,13 @@ impl GpuSynthesizer {
                         "the output reaches past the supported texture area".into(),
                     ));
                 };
+                // Exact windows, whatever `params.standalone` says: a standalone
+                // piece would not meet its neighbours.
                 let p = SynthParams {
                     width: tw as u32,
                     height: th as u32,
                     origin: [ox, oy],
+                    standalone: false,
                     ..params.clone()
                 };
                 let (s, m) = self.synthesize_with_maps(ctx, &p, maps)?;
