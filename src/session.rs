@@ -198,6 +198,27 @@ impl SessionBuilder {
         self
     }
 
+    /// Score the similarity sets on every `n`-th correction pass only (default 1; see
+    /// [`SynthParams::sets_every`]).
+    pub fn sets_every(mut self, n: u32) -> Self {
+        self.params.sets_every = n;
+        self
+    }
+
+    /// Bias towards coherent candidates, 0 to 4 (default 1; see
+    /// [`SynthParams::coherence`]).
+    pub fn coherence(mut self, c: f32) -> Self {
+        self.params.coherence = c;
+        self
+    }
+
+    /// The output is the window at `(x, y)` of the unbounded texture (default `0, 0`):
+    /// windows of the same session and seed fit together (see [`SynthParams::origin`]).
+    pub fn window(mut self, x: i32, y: i32) -> Self {
+        self.params.origin = [x, y];
+        self
+    }
+
     /// Anisometric synthesis along a Jacobian field (see [`crate::field`]).
     pub fn field(mut self, field: crate::field::Field) -> Self {
         self.params.field = Some(field);

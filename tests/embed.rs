@@ -298,3 +298,38 @@ fn progress_reports_and_level_by_level_synthesis_gives_the_same_bytes() {
     assert!(rx.try_iter().next().is_none());
     ctx.take_uncaptured_errors().expect("no wgpu errors");
 }
+
+#[test]
+fn builder_windows_fit_and_setters_reach_the_parameters() {
+    let ex = Exemplar::from_rgba8(48, 48, &gravel_rgba8_crop()).unwrap();
+    let build = |b: texsyn::SessionBuilder| b.exemplar(ex.clone()).seed(4).build().unwrap();
+    let whole = build(Session::builder().size(32, 24).sets_every(2).coherence(0.5));
+    let part = build(
+        Session::builder()
+            .size(16, 12)
+            .window(16, 8)
+            .sets_every(2)
+            .coherence(0.5),
+    );
+    let p = part.params();
+    assert_eq!((p.origin, p.sets_every, p.coherence), ([16, 8], 2, 0.5));
+    assert!(!p.standalone);
+    let (w, q) = (whole.run().unwrap(), part.run().unwrap());
+    for y in 0..12 {
+        for x in 0..16 {
+            assert_eq!(
+                q.coords()[y * 16 + x],
+                w.coords()[(y + 8) * 32 + x + 16],
+                "pixel ({x},{y}) of the window"
+            );
+        }
+    }
+    let standalone = build(Session::builder().size(32, 24).standalone(true));
+    assert!(standalone.params().standalone);
+    // Out-of-range values are refused when the session is built.
+    let bad = Session::builder()
+        .exemplar(ex.clone())
+        .sets_every(0)
+        .build();
+    assert!(bad.is_err());
+}

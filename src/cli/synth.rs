@@ -134,8 +134,8 @@ pub struct SynthArgs {
 
     /// A texture of its own instead of a window of the infinite texture: each level
     /// computes 2 pixels of context beyond the output instead of the 4 per correction
-    /// pass that make windows agree. Faster (GPU time about 15% less at 512x512, 45% at
-    /// 256x256 on lavapipe) at the same quality, but the output no longer fits together
+    /// pass that make windows agree. Faster (GPU time about a fifth less at 256x256 to
+    /// 512x512 on lavapipe) at the same quality, but the output no longer fits together
     /// with --window pieces; not combinable with --window or --tileable-output
     #[arg(long, conflicts_with_all = ["window", "tileable_output"])]
     pub standalone: bool,
