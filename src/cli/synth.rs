@@ -136,7 +136,8 @@ pub struct SynthArgs {
     /// computes 2 pixels of context beyond the output instead of the 4 per correction
     /// pass that make windows agree. Faster (GPU time about a fifth less at 256x256 to
     /// 512x512 on lavapipe) at the same quality, but the output no longer fits together
-    /// with --window pieces; not combinable with --window or --tileable-output
+    /// with --window pieces (an output too large for one piece is still assembled from
+    /// exact windows); not combinable with --window or --tileable-output
     #[arg(long, conflicts_with_all = ["window", "tileable_output"])]
     pub standalone: bool,
 
