@@ -8,7 +8,8 @@ use std::path::{Path, PathBuf};
 
 use texsyn::analysis::file::FORMAT_VERSION;
 use texsyn::analysis::{
-    level_count, level_margin, Analysis, AppearanceSpace, FeatureInfo, LevelData, DIM, MAX_K,
+    level_count, level_margin, Analysis, AppearanceSpace, FeatureInfo, FeatureMode, LevelData, DIM,
+    MAX_K,
 };
 use texsyn::Error;
 
@@ -113,6 +114,12 @@ fn synthetic(width: u32, height: u32, k: u32, tileable: bool, seed: u64) -> Anal
             weight: 1.5,
             clamp: 8.0,
             coverage: 0.25,
+            // Both modes round-trip (file flag 1 and 2).
+            mode: if seed.is_multiple_of(2) {
+                FeatureMode::Sets
+            } else {
+                FeatureMode::Appearance
+            },
         }),
     }
 }
@@ -228,6 +235,13 @@ fn save_load_round_trip_and_overwrite() {
         .map(|e| e.unwrap().file_name())
         .collect();
     assert_eq!(names, vec![std::ffi::OsString::from("a.tsa")]);
+    // Both feature modes survive the file (flags 1 and 2).
+    for (seed, mode) in [(3, FeatureMode::Appearance), (6, FeatureMode::Sets)] {
+        let c = synthetic(16, 16, 2, false, seed);
+        assert_eq!(c.feature.map(|f| f.mode), Some(mode));
+        c.save(&path).unwrap();
+        assert_eq!(Analysis::load(&path).unwrap(), c);
+    }
 }
 
 #[test]
@@ -504,7 +518,11 @@ fn crafted_invalid_values() {
     expect_bad(&wrap(&p2), &["appearance space is 2"], 1 << 20);
     let mut p2 = payload_of(&bytes).to_vec();
     p2[at + 1] = 5;
-    expect_bad(&wrap(&p2), &["feature flag is 5"], 1 << 20);
+    expect_bad(
+        &wrap(&p2),
+        &["feature flag is 5, expected 0, 1 or 2"],
+        1 << 20,
+    );
     let mut p2 = payload_of(&bytes).to_vec();
     p2[at + 2..at + 6].copy_from_slice(&1.0f32.to_le_bytes());
     expect_bad(&wrap(&p2), &["no feature mask is flagged"], 1 << 20);
@@ -519,6 +537,7 @@ fn crafted_invalid_values() {
             weight,
             clamp,
             coverage,
+            mode: FeatureMode::Sets,
         });
         check(a, needle);
     }

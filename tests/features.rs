@@ -14,7 +14,7 @@ use texsyn::analysis::feature::{
     DEFAULT_FEATURE_WEIGHT,
 };
 use texsyn::analysis::{
-    analyze, Analysis, AnalysisOptions, AppearanceSpace, Exemplar, FeatureMask, DIM,
+    analyze, Analysis, AnalysisOptions, AppearanceSpace, Exemplar, FeatureMask, FeatureMode, DIM,
 };
 use texsyn::quality::{self, FloatImage};
 use texsyn::{Error, Session};
@@ -450,6 +450,60 @@ fn color_space_uses_only_the_colour_dimensions() {
     ));
 }
 
+/// FeatureMode::Sets: the synthesis's tables are exactly those of the colours alone, the
+/// similarity sets are searched with the feature channel (so they differ), and the mode
+/// is recorded.
+#[test]
+fn sets_mode_keeps_the_colour_tables_and_moves_the_sets() {
+    let (ex, mask) = bricks(48, 40);
+    let run = |mask: Option<FeatureMask>, mode: FeatureMode| {
+        let opts = AnalysisOptions {
+            feature_mask: mask,
+            feature_weight: 16.0,
+            feature_mode: mode,
+            tileable: Some(true),
+            ..Default::default()
+        };
+        analyze(&ex, &opts, |_| {}).unwrap()
+    };
+    let plain = run(None, FeatureMode::Sets);
+    let sets = run(Some(mask.clone()), FeatureMode::Sets);
+    let appearance = run(Some(mask), FeatureMode::Appearance);
+    assert_eq!(plain.feature, None);
+    assert_eq!(sets.feature.map(|f| f.mode), Some(FeatureMode::Sets));
+    assert_eq!(
+        appearance.feature.map(|f| f.mode),
+        Some(FeatureMode::Appearance)
+    );
+    let mut moved = 0;
+    for (l, (p, s)) in plain.levels.iter().zip(&sets.levels).enumerate() {
+        assert_eq!(
+            (&p.et, &p.proj, &p.qe, p.shift),
+            (&s.et, &s.proj, &s.qe, s.shift),
+            "level {l}"
+        );
+        assert_eq!(p.residual_variance, s.residual_variance);
+        moved += p
+            .offsets
+            .iter()
+            .zip(&s.offsets)
+            .filter(|(a, b)| a != b)
+            .count();
+    }
+    assert!(moved > 0, "the feature channel changed no similarity set");
+    // The paper's mode changes the tables themselves.
+    assert!(plain
+        .levels
+        .iter()
+        .zip(&appearance.levels)
+        .any(|(p, a)| p.et != a.et));
+    assert_eq!("Sets".parse::<FeatureMode>().unwrap(), FeatureMode::Sets);
+    assert!(matches!(
+        "both".parse::<FeatureMode>(),
+        Err(Error::InvalidParameter(_))
+    ));
+}
+
 #[test]
 fn analysis_file_keeps_the_appearance_settings() {
     let (ex, mask) = bricks(32, 32);
@@ -561,6 +615,10 @@ fn cli_feature_mask_and_appearance() {
             run(a, 2, &["--feature-weight"]);
         }
         run(with(&["--feature-weight", "2"]), 2, &["--feature-mask"]);
+        run(with(&["--feature-mode", "sets"]), 2, &["--feature-mask"]);
+        let mut a = with(&["--feature-mode", "both", "--feature-mask"]);
+        a.push(mask_s.to_string());
+        run(a, 2, &["appearance or sets"]);
         run(
             with(&["--appearance", "rgb"]),
             2,
@@ -613,9 +671,30 @@ fn cli_feature_mask_and_appearance() {
     assert_eq!(a.appearance, AppearanceSpace::Color);
     let f = a.feature.unwrap();
     assert_eq!(
-        (f.weight, f.clamp, f.coverage),
-        (0.5, DEFAULT_FEATURE_CLAMP, 0.125)
+        (f.weight, f.clamp, f.coverage, f.mode),
+        (0.5, DEFAULT_FEATURE_CLAMP, 0.125, FeatureMode::Appearance)
     );
+    let out = texsyn(
+        &dir,
+        &[
+            "analyze",
+            BRICK,
+            "-o",
+            "s.tsa",
+            "--feature-mask",
+            mask_s,
+            "--feature-mode",
+            "sets",
+        ],
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(String::from_utf8_lossy(&out.stderr).contains("in the similarity sets only"));
+    let s = Analysis::load(&dir.path("s.tsa")).unwrap();
+    assert_eq!(s.feature.map(|f| f.mode), Some(FeatureMode::Sets));
     let out = texsyn(
         &dir,
         &[

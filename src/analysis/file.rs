@@ -29,7 +29,8 @@
 //!     u64 n_qe,      n_qe x 8 i16           (n_qe == width*height)
 //!     u64 n_offsets, n_offsets x 2 i16      (n_offsets == width*height*(k-1))
 //! u8  appearance space                      (0 = neighborhood, 1 = color)
-//! u8  feature mask used (0|1)
+//! u8  feature mask used: 0 none, 1 in the appearance vectors, 2 in the similarity sets
+//!     only (FeatureMode::Sets; older texsyn builds refuse 2 with a clear error)
 //! f32 feature weight, f32 feature clamp (dmax), f32 mask coverage   (all 0 without a mask)
 //! ```
 //!
@@ -43,7 +44,9 @@ use std::io::Write;
 use std::path::Path;
 
 use super::feature::{FEATURE_CLAMP_RANGE, MAX_FEATURE_WEIGHT};
-use super::{level_count, Analysis, AppearanceSpace, FeatureInfo, LevelData, DIM, MAX_K};
+use super::{
+    level_count, Analysis, AppearanceSpace, FeatureInfo, FeatureMode, LevelData, DIM, MAX_K,
+};
 use crate::error::{Error, Result};
 
 /// First 8 bytes of every analysis file.
@@ -204,11 +207,16 @@ impl Analysis {
             AppearanceSpace::Neighborhood => 0,
             AppearanceSpace::Color => 1,
         })?;
-        w.u8(self.feature.is_some() as u8)?;
+        w.u8(match self.feature.map(|f| f.mode) {
+            None => 0,
+            Some(FeatureMode::Appearance) => 1,
+            Some(FeatureMode::Sets) => 2,
+        })?;
         let f = self.feature.unwrap_or(FeatureInfo {
             weight: 0.0,
             clamp: 0.0,
             coverage: 0.0,
+            mode: FeatureMode::Appearance,
         });
         w.f32(f.weight)?;
         w.f32(f.clamp)?;
@@ -523,7 +531,7 @@ fn decode_payload(payload: &[u8]) -> std::result::Result<Analysis, String> {
             }
             None
         }
-        1 => {
+        1 | 2 => {
             if !(weight.is_finite() && (0.0..=MAX_FEATURE_WEIGHT).contains(&weight)) {
                 return Err(format!(
                     "feature weight is {weight}, expected 0..={MAX_FEATURE_WEIGHT}"
@@ -543,9 +551,14 @@ fn decode_payload(payload: &[u8]) -> std::result::Result<Analysis, String> {
                 weight,
                 clamp,
                 coverage,
+                mode: if has_feature == 1 {
+                    FeatureMode::Appearance
+                } else {
+                    FeatureMode::Sets
+                },
             })
         }
-        f => return Err(format!("feature flag is {f}, expected 0 or 1")),
+        f => return Err(format!("feature flag is {f}, expected 0, 1 or 2")),
     };
 
     if r.remaining() != 0 {

@@ -127,10 +127,14 @@ pub fn print_appearance(ui: &Ui, a: &Analysis) {
     let feature = match &a.feature {
         None => "no feature mask".to_string(),
         Some(f) => format!(
-            "feature mask covering {:.1}% of the exemplar, weight {}, distance clamp {} px",
+            "feature mask covering {:.1}% of the exemplar, weight {}, distance clamp {} px, in the {}",
             100.0 * f.coverage,
             f.weight,
-            f.clamp
+            f.clamp,
+            match f.mode {
+                texsyn::analysis::FeatureMode::Appearance => "appearance vectors",
+                texsyn::analysis::FeatureMode::Sets => "similarity sets only",
+            }
         ),
     };
     ui.info(format!("appearance: {}, {feature}", a.appearance.name()));

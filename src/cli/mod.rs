@@ -92,10 +92,17 @@ pub struct AppearanceArgs {
 
     /// Weight of the feature channel in [0, 100]: 1 gives it as much variance as all
     /// colour channels together; larger values favour structure over colour
-    /// [default with a mask: 1]
+    /// [default with a mask: 1; with --feature-mode sets: 16]
     #[arg(long, value_name = "W", requires = "feature_mask", allow_hyphen_values = true,
           value_parser = parse_feature_weight)]
     pub feature_weight: Option<f32>,
+
+    /// Where the feature mask acts: appearance (the paper: in the appearance vectors the
+    /// synthesis matches; structures stay whole, colour energy rises) or sets (in the
+    /// similarity sets only: the colours match as without a mask, a smaller structural
+    /// gain) [default: appearance]
+    #[arg(long, value_name = "MODE", requires = "feature_mask", value_parser = parse_feature_mode)]
+    pub feature_mode: Option<texsyn::analysis::FeatureMode>,
 
     /// Appearance vector: neighborhood (5x5 neighbourhoods reduced to 8D, the paper's
     /// appearance space) or color (the pixel colour alone, for comparison; same runtime)
@@ -108,9 +115,16 @@ impl AppearanceArgs {
     /// come before any analysis.
     pub fn apply(&self, options: &mut texsyn::AnalysisOptions) -> CliResult<()> {
         options.appearance = self.appearance;
-        if let Some(w) = self.feature_weight {
-            options.feature_weight = w;
+        if let Some(m) = self.feature_mode {
+            options.feature_mode = m;
         }
+        options.feature_weight = match (self.feature_weight, options.feature_mode) {
+            (Some(w), _) => w,
+            (None, texsyn::analysis::FeatureMode::Sets) => {
+                texsyn::analysis::feature::DEFAULT_SETS_FEATURE_WEIGHT
+            }
+            (None, texsyn::analysis::FeatureMode::Appearance) => options.feature_weight,
+        };
         if let Some(path) = &self.feature_mask {
             let mask = texsyn::analysis::FeatureMask::load(path)
                 .map_err(|e| fail(format!("--feature-mask: {e}")))?;
@@ -142,6 +156,12 @@ pub fn parse_feature_weight(s: &str) -> Result<f32, String> {
         other => other.to_string(),
     })?;
     Ok(v)
+}
+
+pub fn parse_feature_mode(s: &str) -> Result<texsyn::analysis::FeatureMode, String> {
+    s.trim()
+        .parse()
+        .map_err(|_| format!("\"{s}\": the feature mode is appearance or sets"))
 }
 
 pub fn parse_appearance(s: &str) -> Result<texsyn::analysis::AppearanceSpace, String> {
