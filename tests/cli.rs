@@ -877,7 +877,7 @@ fn controls_end_to_end_and_their_bad_inputs() {
     .save(dir.path("height.png"))
     .unwrap();
     ok(&dir, &["analyze", GRAVEL, "-o", "g.tsa"]);
-    ok(
+    let said = texsyn(
         &dir,
         &[
             "synth",
@@ -888,6 +888,12 @@ fn controls_end_to_end_and_their_bad_inputs() {
             "40x30",
             "--standalone",
         ],
+    );
+    assert!(said.status.success(), "{}", text(&said.stderr));
+    assert!(
+        text(&said.stderr).contains("seed 1, standalone)"),
+        "{}",
+        text(&said.stderr)
     );
     assert_eq!(png_size(&dir.path("sa.png")), (40, 30));
 

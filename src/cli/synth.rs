@@ -708,14 +708,17 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
     } else {
         String::new()
     };
+    let placement = if args.standalone && !windowed {
+        "standalone".to_string()
+    } else {
+        format!("window {},{}", args.window[0], args.window[1])
+    };
     ui.info(format!(
-        "output: {} ({}x{}{magnified}, seed {}, window {},{})",
+        "output: {} ({}x{}{magnified}, seed {}, {placement})",
         args.output.display(),
         out_size.0,
         out_size.1,
         args.seed,
-        args.window[0],
-        args.window[1]
     ));
     if let Some(c) = &args.coords_out {
         ui.info(format!("coordinates: {}", c.display()));
