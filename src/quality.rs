@@ -1017,6 +1017,134 @@ impl UnionFind {
     }
 }
 
+/// Displacements shorter than this (pixels) do not count in [`layout_repetition`]: a
+/// pixel copied twice a few pixels apart is local redundancy, not a repeated layout.
+pub const MIN_REPEAT_DISTANCE: f64 = 24.0;
+
+/// Side of the displacement bins of [`layout_repetition`] in output pixels: repeats of
+/// a layout that is only nearly periodic (jitter, seams) fall into the same bin.
+pub const REPEAT_BIN: i32 = 8;
+
+/// [`layout_repetition`] looks at most this many pixels along each axis (the centre of
+/// larger outputs): every pair of pixels that copy the same exemplar pixel is counted,
+/// which grows with the square of the area.
+pub const MAX_REPEAT_WINDOW: u32 = 512;
+
+/// How much of the output's layout repeats at one displacement: see
+/// [`layout_repetition`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LayoutRepetition {
+    /// Output pixels whose exemplar pixel is copied again at the most frequent
+    /// displacement (binned), over all output pixels: 0 when the layout never repeats,
+    /// about `1 - 1/n` for the exemplar tiled `n` times across.
+    pub share: f64,
+    /// That displacement `[dx, dy]` in output pixels (the mean of the pairs in its bin);
+    /// `[0, 0]` when no pixel repeats.
+    pub vector: [f64; 2],
+}
+
+/// Layout repetition of a coordinate map: pairs of output pixels that copy the same
+/// exemplar pixel (modulo the exemplar size when `tileable`) at least
+/// [`MIN_REPEAT_DISTANCE`] apart, binned by their displacement in [`REPEAT_BIN`]-pixel
+/// bins; the fullest bin gives the figure. A texture whose features stand on a lattice
+/// (a near-tiling of the exemplar) scores high even when its verbatim regions are
+/// small, since each region continues the lattice. Every exemplar pixel of a `n x`
+/// larger output appears about `n` times whatever the method; what this measures is
+/// whether those copies keep one displacement: a random layout puts about
+/// `REPEAT_BIN^2 / exemplar pixels` of them in a bin (0.4% for a 128x128 exemplar).
+/// Outputs larger than [`MAX_REPEAT_WINDOW`] are measured on their central window of
+/// that size.
+///
+/// Errors: as [`verbatim_stats`].
+pub fn layout_repetition(
+    coords: &[[i32; 2]],
+    out_w: u32,
+    out_h: u32,
+    ex_w: u32,
+    ex_h: u32,
+    tileable: bool,
+) -> Result<LayoutRepetition> {
+    let (w, h) = (out_w as usize, out_h as usize);
+    if w == 0 || h == 0 || coords.is_empty() {
+        return Err(invalid(format!(
+            "coordinate map is empty ({out_w}x{out_h})"
+        )));
+    }
+    if coords.len() as u64 != w as u64 * h as u64 {
+        return Err(invalid(format!(
+            "coordinate map holds {} entries for a {out_w}x{out_h} output",
+            coords.len()
+        )));
+    }
+    if ex_w == 0 || ex_h == 0 {
+        return Err(invalid(format!("exemplar size {ex_w}x{ex_h} is empty")));
+    }
+    let key = |c: [i32; 2]| -> (i64, i64) {
+        let (x, y) = (c[0] as i64, c[1] as i64);
+        if tileable {
+            (y.rem_euclid(ex_h as i64), x.rem_euclid(ex_w as i64))
+        } else {
+            (y, x)
+        }
+    };
+    // The central window; raster order within a group (stable sort), so each pair
+    // points forward.
+    let (cw, ch) = (
+        w.min(MAX_REPEAT_WINDOW as usize),
+        h.min(MAX_REPEAT_WINDOW as usize),
+    );
+    let (x0, y0) = ((w - cw) / 2, (h - ch) / 2);
+    let mut order: Vec<u32> = (0..ch)
+        .flat_map(|y| (0..cw).map(move |x| ((y0 + y) * w + x0 + x) as u32))
+        .collect();
+    order.sort_by_key(|&i| key(coords[i as usize]));
+    // Bin -> (pairs, dx sum, dy sum); a BTreeMap, so that ties resolve in bin order.
+    let mut bins: std::collections::BTreeMap<(i32, i32), (u64, i64, i64)> = Default::default();
+    let min2 = MIN_REPEAT_DISTANCE * MIN_REPEAT_DISTANCE;
+    let mut start = 0;
+    while start < order.len() {
+        let k = key(coords[order[start] as usize]);
+        let mut end = start + 1;
+        while end < order.len() && key(coords[order[end] as usize]) == k {
+            end += 1;
+        }
+        let group = &order[start..end];
+        start = end;
+        for (a, &i) in group.iter().enumerate() {
+            let (xa, ya) = ((i as usize % w) as i32, (i as usize / w) as i32);
+            for &j in &group[a + 1..] {
+                let (dx, dy) = ((j as usize % w) as i32 - xa, (j as usize / w) as i32 - ya);
+                if ((dx * dx + dy * dy) as f64) < min2 {
+                    continue;
+                }
+                let e = bins
+                    .entry((dx.div_euclid(REPEAT_BIN), dy.div_euclid(REPEAT_BIN)))
+                    .or_insert((0, 0, 0));
+                e.0 += 1;
+                e.1 += dx as i64;
+                e.2 += dy as i64;
+            }
+        }
+    }
+    // The fullest bin; ties go to the first in bin order (deterministic).
+    let best = bins
+        .values()
+        .fold(None::<(u64, i64, i64)>, |b, &v| match b {
+            Some(b) if b.0 >= v.0 => Some(b),
+            _ => Some(v),
+        });
+    Ok(match best {
+        None => LayoutRepetition {
+            share: 0.0,
+            vector: [0.0, 0.0],
+        },
+        Some((n, sx, sy)) => LayoutRepetition {
+            share: n as f64 / (cw * ch) as f64,
+            vector: [sx as f64 / n as f64, sy as f64 / n as f64],
+        },
+    })
+}
+
 // ---------------------------------------------------------------------------------
 // Report
 // ---------------------------------------------------------------------------------
@@ -1040,6 +1168,8 @@ pub struct QualityReport {
     pub histogram_mean: f64,
     /// [`verbatim_stats`] when a coordinate map was given.
     pub verbatim: Option<VerbatimStats>,
+    /// [`layout_repetition`] when a coordinate map was given.
+    pub repetition: Option<LayoutRepetition>,
 }
 
 /// JSON number (`null` for NaN and infinities, which JSON cannot represent).
@@ -1057,7 +1187,8 @@ impl QualityReport {
     /// "texture_energy":{"full":..,"half":..,"quarter":..},
     /// "histogram_emd":{"per_channel":[..],"mean":..},
     /// "verbatim":{"coherent_fraction":..,"largest_region_fraction":..,
-    /// "largest_region_pixels":..,"regions":..} or null}`. Non-finite numbers are `null`.
+    /// "largest_region_pixels":..,"regions":..} or null,
+    /// "repetition":{"share":..,"vector":[dx,dy]} or null}`. Non-finite numbers are `null`.
     pub fn to_json(&self) -> String {
         let per_channel: Vec<String> = self.histogram.iter().map(|&v| json_num(v)).collect();
         let verbatim = match &self.verbatim {
@@ -1070,10 +1201,19 @@ impl QualityReport {
                 v.regions
             ),
         };
+        let repetition = match &self.repetition {
+            None => "null".to_string(),
+            Some(r) => format!(
+                "{{\"share\":{},\"vector\":[{},{}]}}",
+                json_num(r.share),
+                json_num(r.vector[0]),
+                json_num(r.vector[1])
+            ),
+        };
         format!(
             "{{\"radius\":{},\"exemplar\":{{\"width\":{},\"height\":{}}},\"output\":{{\"width\":{},\"height\":{}}},\"channels\":{},\
              \"texture_energy\":{{\"full\":{},\"half\":{},\"quarter\":{}}},\
-             \"histogram_emd\":{{\"per_channel\":[{}],\"mean\":{}}},\"verbatim\":{}}}",
+             \"histogram_emd\":{{\"per_channel\":[{}],\"mean\":{}}},\"verbatim\":{},\"repetition\":{}}}",
             self.radius,
             self.exemplar_size[0],
             self.exemplar_size[1],
@@ -1085,7 +1225,8 @@ impl QualityReport {
             json_num(self.energy[2]),
             per_channel.join(","),
             json_num(self.histogram_mean),
-            verbatim
+            verbatim,
+            repetition
         )
     }
 }
@@ -1248,16 +1389,26 @@ pub fn evaluate(
     let energy = multiscale_energy(exemplar, output, radius)?;
     let histogram = histogram_distance(exemplar, output)?;
     let histogram_mean = histogram.iter().sum::<f64>() / histogram.len().max(1) as f64;
-    let verbatim = match coords {
-        None => None,
-        Some(c) => Some(verbatim_stats(
-            c.coords,
-            c.width,
-            c.height,
-            exemplar.width,
-            exemplar.height,
-            c.tileable,
-        )?),
+    let (verbatim, repetition) = match coords {
+        None => (None, None),
+        Some(c) => (
+            Some(verbatim_stats(
+                c.coords,
+                c.width,
+                c.height,
+                exemplar.width,
+                exemplar.height,
+                c.tileable,
+            )?),
+            Some(layout_repetition(
+                c.coords,
+                c.width,
+                c.height,
+                exemplar.width,
+                exemplar.height,
+                c.tileable,
+            )?),
+        ),
     };
     Ok(QualityReport {
         radius,
@@ -1268,6 +1419,7 @@ pub fn evaluate(
         histogram,
         histogram_mean,
         verbatim,
+        repetition,
     })
 }
 

@@ -4,8 +4,8 @@
 use std::time::Instant;
 
 use texsyn::quality::{
-    evaluate, histogram_distance, multiscale_energy, shuffled_baseline, texture_energy,
-    texture_energy_exact, verbatim_stats, CoordMap, FloatImage, DEFAULT_RADIUS,
+    evaluate, histogram_distance, layout_repetition, multiscale_energy, shuffled_baseline,
+    texture_energy, texture_energy_exact, verbatim_stats, CoordMap, FloatImage, DEFAULT_RADIUS,
 };
 
 struct Rng(u64);
@@ -217,6 +217,60 @@ fn identity(w: u32, h: u32, dx: i32, dy: i32) -> Vec<[i32; 2]> {
 }
 
 #[test]
+fn layout_repetition_finds_a_tiling_and_not_a_random_layout() {
+    // The 32x32 exemplar tiled 4 x 3 times (wrapped coordinates, as a tileable
+    // exemplar's): every pixel but the last period's recurs 32 pixels right and down.
+    let (w, h) = (128u32, 96u32);
+    let tiled: Vec<[i32; 2]> = (0..h)
+        .flat_map(|y| (0..w).map(move |x| [(x % 32) as i32, (y % 32) as i32]))
+        .collect();
+    let r = layout_repetition(&tiled, w, h, 32, 32, true).unwrap();
+    // Horizontal repeats: 96 of 128 columns have one 32 px to their right (3/4 of the
+    // pixels); vertical: 64 of 96 rows (2/3). The fullest bin is the horizontal one.
+    assert!((r.share - 0.75).abs() < 1e-12, "{r:?}");
+    assert_eq!(r.vector, [32.0, 0.0]);
+    // The same tiling, unwrapped coordinates of a non-tileable exemplar: identical
+    // figure (the coordinates are already in range).
+    assert_eq!(layout_repetition(&tiled, w, h, 32, 32, false).unwrap(), r);
+    // Tiled with a shear (each period row shifted by 11): the vector follows it.
+    let sheared: Vec<[i32; 2]> = (0..h)
+        .flat_map(|y| (0..w).map(move |x| [((x + 11 * (y / 32)) % 32) as i32, (y % 32) as i32]))
+        .collect();
+    let s = layout_repetition(&sheared, w, h, 32, 32, true).unwrap();
+    assert!((s.share - 0.75).abs() < 1e-12, "{s:?}");
+    // Random coordinates of a 64x64 exemplar: a pixel's copy lies at a given
+    // displacement with probability 1/4096, so an 8x8 bin holds about 64/4096 = 1.6%.
+    let mut rng = Rng(7);
+    let random: Vec<[i32; 2]> = (0..w * h)
+        .map(|_| [rng.below(64) as i32, rng.below(64) as i32])
+        .collect();
+    let q = layout_repetition(&random, w, h, 64, 64, true).unwrap();
+    assert!(q.share > 0.0 && q.share < 0.04, "{q:?}");
+    // Every pixel distinct (an output no larger than the exemplar): nothing repeats.
+    let id = identity(32, 24, 0, 0);
+    let z = layout_repetition(&id, 32, 24, 32, 24, false).unwrap();
+    assert_eq!((z.share, z.vector), (0.0, [0.0, 0.0]));
+    // Copies closer than MIN_REPEAT_DISTANCE do not count: a 2-pixel period.
+    let near: Vec<[i32; 2]> = (0..h)
+        .flat_map(|y| (0..w).map(move |x| [(x % 2) as i32, (y % 2) as i32]))
+        .collect();
+    let n = layout_repetition(&near, w, h, 32, 32, false).unwrap();
+    assert!(n.share > 0.9, "{n:?}"); // repeats at 24+ px exist too (every even shift)
+    assert!(n.vector[0].hypot(n.vector[1]) >= 24.0, "{n:?}");
+    // Deterministic; a large output is measured on its central 512x512 window.
+    assert_eq!(layout_repetition(&random, w, h, 64, 64, true).unwrap(), q);
+    let big: Vec<[i32; 2]> = (0..640u32 * 600)
+        .map(|i| [((i % 640) % 32) as i32, ((i / 640) % 32) as i32])
+        .collect();
+    let b = layout_repetition(&big, 640, 600, 32, 32, true).unwrap();
+    assert!((b.share - (1.0 - 32.0 / 512.0)).abs() < 1e-12, "{b:?}");
+    // Bad sizes are errors.
+    assert!(layout_repetition(&tiled, w, h + 1, 32, 32, true).is_err());
+    assert!(layout_repetition(&[], 0, 0, 32, 32, true).is_err());
+    assert!(layout_repetition(&tiled, w, h, 0, 32, true).is_err());
+}
+
+#[test]
 fn verbatim_identity_is_one_region() {
     let coords = identity(32, 24, 0, 0);
     let s = verbatim_stats(&coords, 32, 24, 32, 24, false).unwrap();
@@ -403,6 +457,8 @@ fn report_and_json() {
         "\"largest_region_fraction\":",
         "\"largest_region_pixels\":256",
         "\"regions\":16",
+        "\"repetition\":{\"share\":",
+        "\"vector\":[",
         "\"radius\":3",
     ] {
         assert!(json.contains(key), "{key} missing in {json}");

@@ -17,7 +17,10 @@ use super::{fail, CliResult, TileArgs, Ui};
                   where the images are too small); histogram_emd: earth mover's distance \
                   between the colour histograms, per channel and mean; verbatim (with \
                   --coords): how much of the output is verbatim copy of the exemplar \
-                  (coherent neighbour pairs, largest copied region), else null; \
+                  (coherent neighbour pairs, largest copied region), else null; repetition \
+                  (with --coords): the share of pixels whose exemplar pixel recurs at one same \
+                  displacement (8-pixel bins, 24 px and more; 0 = no repeated layout, near 1 = \
+                  a tiling of the exemplar), and that displacement; \
                   wrap_seam_ratio: how visible the seam is when the image is tiled (mean \
                   difference across its wrap-around edges over the mean difference between \
                   neighbouring pixels; about 1 or below tiles seamlessly); jacobian (with \
