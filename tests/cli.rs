@@ -482,6 +482,13 @@ fn bad_inputs_fail_cleanly() {
     synth(GRAVEL, &["--randomness", "nan"], 2, "between 0 and 2");
     synth(GRAVEL, &["--seed", "4294967296"], 2, "--seed");
     synth(GRAVEL, &["--seed", "x"], 2, "--seed");
+    // A negative seed names the range instead of being taken for an unknown flag.
+    synth(
+        GRAVEL,
+        &["--seed", "-1"],
+        2,
+        "give an integer from 0 to 4294967295",
+    );
     synth(GRAVEL, &["--passes", "17"], 2, "--passes");
     synth(
         GRAVEL,

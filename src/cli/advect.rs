@@ -86,7 +86,8 @@ pub struct AdvectArgs {
     pub field: Option<FieldSpec>,
 
     /// Random seed of the first frame's synthesis (as for synth)
-    #[arg(long, default_value_t = SynthParams::default().seed)]
+    #[arg(long, default_value_t = SynthParams::default().seed,
+          allow_hyphen_values = true, value_parser = super::parse_seed)]
     pub seed: u32,
 
     /// Compute texture energy every K frames (it is the costly figure; 0: first and last)

@@ -47,7 +47,8 @@ pub struct BenchArgs {
     pub warmup: u32,
 
     /// Random seed of the syntheses
-    #[arg(long, value_name = "S", default_value_t = SynthParams::default().seed)]
+    #[arg(long, value_name = "S", default_value_t = SynthParams::default().seed,
+          allow_hyphen_values = true, value_parser = super::parse_seed)]
     pub seed: u32,
 
     /// Correction passes on every level but the finest (0..=16)

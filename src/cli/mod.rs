@@ -304,6 +304,14 @@ impl Ui {
 // Value parsers and helpers shared by the subcommands
 // ---------------------------------------------------------------------------------------
 
+/// A seed: an integer in `0..=u32::MAX`. Negative and other values get a message
+/// naming the range (clap's default for `u32` says only "invalid digit").
+pub fn parse_seed(s: &str) -> Result<u32, String> {
+    s.trim()
+        .parse::<u32>()
+        .map_err(|_| format!("seed \"{s}\": give an integer from 0 to {}", u32::MAX))
+}
+
 /// `N` or `NxM` (also `N×M` / `NXM`), both at least 1.
 pub fn parse_size(s: &str) -> Result<[u32; 2], String> {
     let t = s.trim();

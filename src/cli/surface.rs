@@ -109,7 +109,8 @@ pub struct SurfaceArgs {
     pub occlusion_map: Option<PathBuf>,
 
     /// Random seed (as for synth)
-    #[arg(long, default_value_t = SynthParams::default().seed)]
+    #[arg(long, default_value_t = SynthParams::default().seed,
+          allow_hyphen_values = true, value_parser = super::parse_seed)]
     pub seed: u32,
     /// Jitter randomness, one value or one per level, coarsest first (as for synth)
     #[arg(long, value_name = "R|R0,R1,...", value_parser = parse_randomness)]

@@ -42,7 +42,8 @@ pub struct SynthArgs {
     pub size: [u32; 2],
 
     /// Random seed (0..=4294967295); each seed gives a different texture
-    #[arg(long, value_name = "S", default_value_t = SynthParams::default().seed)]
+    #[arg(long, value_name = "S", default_value_t = SynthParams::default().seed,
+          allow_hyphen_values = true, value_parser = super::parse_seed)]
     pub seed: u32,
 
     /// Jitter randomness in [0, 2]: one value for every level, or R0,R1,... per level
