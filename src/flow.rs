@@ -27,6 +27,22 @@ pub enum Flow {
         /// Angular velocity, radians per unit time.
         omega: f32,
     },
+    /// A Lamb-Oseen vortex about `(cx, cy)` (fractions of the size): it spins at `omega`
+    /// radians per unit time at the centre, like [`Flow::Vortex`], but the tangential speed
+    /// `omega * rc^2 / r * (1 - exp(-r^2 / rc^2))` peaks near the core radius `rc` (0.64
+    /// `omega rc` at 1.12 `rc`) and falls as `1 / r` beyond it, as in a fluid: the texture
+    /// turns inside the core and shears outside it.
+    LambOseen {
+        /// Centre x as a fraction of the output width (0.5 = middle).
+        cx: f32,
+        /// Centre y as a fraction of the output height (0.5 = middle).
+        cy: f32,
+        /// Angular velocity at the centre, radians per unit time (positive: clockwise on
+        /// screen, as for [`Flow::Vortex`]).
+        omega: f32,
+        /// Core radius `rc` as a fraction of the output's smaller side (> 0).
+        core: f32,
+    },
     /// Radial flow from `(cx, cy)` (negative strength: a sink); the speed is `strength`
     /// pixels per unit time at every radius beyond 8 pixels (and falls to 0 at the
     /// centre), so the texture stretches near the source.
@@ -67,6 +83,9 @@ Velocity fields (pixels per unit time; a frame moves the texture by velocity * d
   uniform:VX,VY            the same everywhere
   vortex[:CX,CY,OMEGA]     rigid rotation about (CX, CY) (fractions of the size, default
                            0.5,0.5) at OMEGA radians per unit time (default 0.01)
+  vortex:CX,CY,OMEGA,CORE  a fluid (Lamb-Oseen) vortex: spins at OMEGA at the centre, the
+                           speed peaking near the core radius CORE (a fraction of the
+                           smaller side, > 0) and falling as 1/r beyond it
   source[:CX,CY,SPEED]     radial flow from (CX, CY) at SPEED px per unit time (default
                            0.5,0.5,1); a negative SPEED is a sink
   gusts[:SPEED,TURN]       time-varying: a drift of SPEED (default 1) turning at TURN
@@ -106,6 +125,20 @@ impl Flow {
             Flow::Vortex { cx, cy, omega } => {
                 let (cx, cy) = (cx * w, cy * h);
                 at(&|x, y| [-omega * (y - cy), omega * (x - cx)])
+            }
+            Flow::LambOseen {
+                cx,
+                cy,
+                omega,
+                core,
+            } => {
+                let (cx, cy) = (cx * w, cy * h);
+                let rc = core * w.min(h);
+                at(&|x, y| {
+                    let (dx, dy) = (x - cx, y - cy);
+                    let s = lamb_oseen_rate(*omega, rc, dx * dx + dy * dy);
+                    [-s * dy, s * dx]
+                })
             }
             Flow::Source { cx, cy, strength } => {
                 let (cx, cy) = (cx * w, cy * h);
@@ -153,6 +186,20 @@ impl Flow {
         let ok = match self {
             Flow::Uniform { vx, vy } => finite(&[*vx, *vy]),
             Flow::Vortex { cx, cy, omega } => finite(&[*cx, *cy, *omega]),
+            Flow::LambOseen {
+                cx,
+                cy,
+                omega,
+                core,
+            } => {
+                if finite(&[*core]) && *core <= 0.0 {
+                    return Err(Error::InvalidParameter(format!(
+                        "vortex core radius {core}: give a fraction of the size > 0 (or three \
+                         numbers for a rigid rotation)"
+                    )));
+                }
+                finite(&[*cx, *cy, *omega, *core])
+            }
             Flow::Source { cx, cy, strength } => finite(&[*cx, *cy, *strength]),
             Flow::Gusts { speed, turn } => finite(&[*speed, *turn]),
             Flow::Map {
@@ -171,7 +218,10 @@ impl Flow {
         };
         // Centres are fractions of the output size (unlike `--field vortex`, in pixels):
         // one far outside is almost surely pixels given by mistake.
-        if let Flow::Vortex { cx, cy, .. } | Flow::Source { cx, cy, .. } = self {
+        if let Flow::Vortex { cx, cy, .. }
+        | Flow::LambOseen { cx, cy, .. }
+        | Flow::Source { cx, cy, .. } = self
+        {
             if ok && (cx.abs() > 4.0 || cy.abs() > 4.0) {
                 return Err(Error::InvalidParameter(format!(
                     "flow centre ({cx}, {cy}): flow centres are fractions of the output size \
@@ -229,6 +279,24 @@ impl Flow {
     }
 }
 
+/// Angular rate `v_theta / r` of a Lamb-Oseen vortex spinning at `omega` at its centre,
+/// core radius `rc`, at squared distance `r2`: `omega rc^2 / r^2 (1 - exp(-r^2 / rc^2))`,
+/// which tends to `omega` at the centre (computed there from its series, so that small
+/// `r2` loses no precision); 0 for a core radius that is not positive.
+pub(crate) fn lamb_oseen_rate(omega: f32, rc: f32, r2: f32) -> f32 {
+    // A core of 0 (refused by `validate`) gives a still field, not NaN at the centre.
+    let x = if rc > 0.0 {
+        r2 / (rc * rc)
+    } else {
+        f32::INFINITY
+    };
+    if x < 1e-4 {
+        omega * (1.0 - 0.5 * x)
+    } else {
+        omega * (-(-x).exp_m1()) / x
+    }
+}
+
 impl std::str::FromStr for Flow {
     type Err = String;
 
@@ -255,6 +323,17 @@ impl std::str::FromStr for Flow {
             "uniform" => {
                 let v = nums(2, &[])?;
                 Flow::Uniform { vx: v[0], vy: v[1] }
+            }
+            "vortex" if rest.split(',').count() == 4 => {
+                let v = nums(4, &[])?;
+                let flow = Flow::LambOseen {
+                    cx: v[0],
+                    cy: v[1],
+                    omega: v[2],
+                    core: v[3],
+                };
+                flow.validate().map_err(|e| format!("'{s}': {e}"))?;
+                flow
             }
             "vortex" => {
                 let v = nums(3, &[0.5, 0.5, 0.01])?;

@@ -428,6 +428,78 @@ fn bad_velocities_and_time_steps() {
     ctx().take_uncaptured_errors().unwrap();
 }
 
+/// The Lamb-Oseen vortex: rigid at the centre, tangential everywhere, its speed peaking
+/// near 1.12 core radii at 0.64 omega rc and falling as 1/r; parsed from four numbers.
+#[test]
+fn lamb_oseen_vortex_profile() {
+    let (w, h) = (400u32, 200u32);
+    let (omega, core) = (0.02f32, 0.1f32);
+    let flow: Flow = "vortex:0.5,0.5,0.02,0.1".parse().unwrap();
+    assert_eq!(
+        flow,
+        Flow::LambOseen {
+            cx: 0.5,
+            cy: 0.5,
+            omega,
+            core
+        }
+    );
+    let v = flow.sample(w, h, 0.0).unwrap();
+    let rc = core * h as f32; // 20 px: a fraction of the smaller side
+    let mut peak = (0.0f32, 0.0f32);
+    for y in 0..h {
+        for x in 0..w {
+            let (dx, dy) = (x as f32 + 0.5 - 200.0, y as f32 + 0.5 - 100.0);
+            let r = dx.hypot(dy);
+            let [vx, vy] = v[(y * w + x) as usize];
+            // Tangential, clockwise on screen for positive omega (as the rigid vortex).
+            assert!((vx * dx + vy * dy).abs() <= 1e-5 * r.max(1.0), "({x}, {y})");
+            assert!(vy * dx - vx * dy >= 0.0);
+            let speed = vx.hypot(vy);
+            if r < 1.0 {
+                // Rigid there: the rate is omega (1 - r^2 / 2 rc^2) to first order.
+                assert!(
+                    (speed / r - omega).abs() < 1e-3 * omega,
+                    "centre rate {}",
+                    speed / r
+                );
+            }
+            if speed > peak.0 {
+                peak = (speed, r);
+            }
+            if r > 6.0 * rc {
+                // Beyond the core: omega rc^2 / r to within exp(-36).
+                assert!((speed * r / (omega * rc * rc) - 1.0).abs() < 1e-4, "r {r}");
+            }
+        }
+    }
+    assert!((peak.0 / (omega * rc) - 0.638).abs() < 0.005, "{peak:?}");
+    assert!((peak.1 / rc - 1.121).abs() < 0.05, "{peak:?}");
+    // Three numbers stay the rigid rotation; bad cores are errors, not a NaN field.
+    assert!(matches!(
+        "vortex:0.5,0.5,0.02".parse::<Flow>().unwrap(),
+        Flow::Vortex { .. }
+    ));
+    for bad in [
+        "vortex:0.5,0.5,0.02,0",
+        "vortex:0.5,0.5,0.02,-1",
+        "vortex:9,0.5,0.02,0.1",
+    ] {
+        assert!(bad.parse::<Flow>().is_err(), "{bad}");
+    }
+    let zero = Flow::LambOseen {
+        cx: 0.5,
+        cy: 0.5,
+        omega,
+        core: 0.0,
+    };
+    assert!(zero.validate().is_err());
+    // Sampled anyway (the library does not force validate first): still, never NaN,
+    // also at a pixel centre that is the vortex's centre.
+    let still = zero.sample(9, 9, 0.0).unwrap();
+    assert!(still.iter().all(|v| *v == [0.0, 0.0]), "{still:?}");
+}
+
 mod common;
 
 /// `texsyn advect` end to end (2D frames folder, GIF, a mesh) and its bad inputs.
@@ -562,6 +634,8 @@ fn advect_cli() {
         (vec!["--flow", "vortex", "--dt", "-1"], "time step", 1),
         (vec!["--flow", "uniform:nan,1"], "finite", 2),
         (vec!["--flow", "swirly"], "unknown flow", 2),
+        (vec!["--flow", "vortex:0.5,0.5,0.02,0"], "core radius", 2),
+        (vec!["--flow", "vortex:0.5,0.5,0.02,-0.1"], "core radius", 2),
         (vec!["--flow", "image:missing.png"], "missing.png", 1),
     ] {
         let mut a = vec![

@@ -41,13 +41,17 @@ pub fn atlas_velocity_from_vertices(
 
 /// Atlas velocities of a preset flow at time `t`, interpreted on the surface: `vortex`
 /// turns about the world y axis through the mesh's centre at OMEGA radians per unit
-/// time; `uniform:VX,VY` drifts along world x and y, `source` flows away from the centre
+/// time (with a core radius, a Lamb-Oseen vortex about that axis, the radius a fraction
+/// of the mesh's larger horizontal extent); `uniform:VX,VY` drifts along world x and y, `source` flows away from the centre
 /// (towards it when negative), `gusts` drifts in the xz plane turning with time; speeds
 /// are in exemplar texels per unit time. Image flows are 2D only.
 pub fn atlas_velocity(prepared: &PreparedSurface, flow: &Flow, t: f32) -> Result<Vec<[f32; 2]>> {
     let mesh = &prepared.atlas.mesh;
     let (lo, hi) = mesh.bounding_box();
     let centre = (lo + hi) * 0.5;
+    // The core radius of a Lamb-Oseen vortex is a fraction of the mesh's larger
+    // horizontal extent (the 2D flow's is of the output's smaller side).
+    let extent = (hi.x - lo.x).max(hi.z - lo.z);
     let unit = prepared
         .texel_size
         .unwrap_or_else(|| super::pipeline::auto_texel_size(&prepared.atlas));
@@ -55,6 +59,12 @@ pub fn atlas_velocity(prepared: &PreparedSurface, flow: &Flow, t: f32) -> Result
         match flow {
             Flow::Uniform { vx, vy } => Vec3::new(*vx, *vy, 0.0) * unit,
             Flow::Vortex { omega, .. } => Vec3::Y.cross(p - centre) * *omega,
+            Flow::LambOseen { omega, core, .. } => {
+                let d = p - centre;
+                let rc = core * extent;
+                let rate = crate::flow::lamb_oseen_rate(*omega, rc, d.x * d.x + d.z * d.z);
+                Vec3::Y.cross(d) * rate
+            }
             Flow::Source { strength, .. } => (p - centre).normalize_or_zero() * *strength * unit,
             Flow::Gusts { speed, turn } => {
                 let a = turn * t;
