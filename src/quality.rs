@@ -899,6 +899,32 @@ pub struct CoordMap<'a> {
     pub tileable: bool,
 }
 
+/// The errors shared by the coordinate-map figures: an empty map, a map whose length is
+/// not `out_w * out_h`, or an empty exemplar size.
+fn check_coord_map(
+    coords: &[[i32; 2]],
+    out_w: u32,
+    out_h: u32,
+    ex_w: u32,
+    ex_h: u32,
+) -> Result<()> {
+    if out_w == 0 || out_h == 0 || coords.is_empty() {
+        return Err(invalid(format!(
+            "coordinate map is empty ({out_w}x{out_h})"
+        )));
+    }
+    if coords.len() as u64 != out_w as u64 * out_h as u64 {
+        return Err(invalid(format!(
+            "coordinate map holds {} entries for a {out_w}x{out_h} output",
+            coords.len()
+        )));
+    }
+    if ex_w == 0 || ex_h == 0 {
+        return Err(invalid(format!("exemplar size {ex_w}x{ex_h} is empty")));
+    }
+    Ok(())
+}
+
 /// Verbatim-copy statistics of a coordinate map (`coords[y * out_w + x]` = exemplar
 /// pixel copied to `(x, y)`). A horizontal or vertical pair `(p, p + e)` is coherent
 /// when `coords[p + e] == coords[p] + e` (modulo the exemplar size when `tileable`).
@@ -914,21 +940,8 @@ pub fn verbatim_stats(
     ex_h: u32,
     tileable: bool,
 ) -> Result<VerbatimStats> {
+    check_coord_map(coords, out_w, out_h, ex_w, ex_h)?;
     let (w, h) = (out_w as usize, out_h as usize);
-    if w == 0 || h == 0 || coords.is_empty() {
-        return Err(invalid(format!(
-            "coordinate map is empty ({out_w}x{out_h})"
-        )));
-    }
-    if coords.len() as u64 != w as u64 * h as u64 {
-        return Err(invalid(format!(
-            "coordinate map holds {} entries for a {out_w}x{out_h} output",
-            coords.len()
-        )));
-    }
-    if ex_w == 0 || ex_h == 0 {
-        return Err(invalid(format!("exemplar size {ex_w}x{ex_h} is empty")));
-    }
     // In 64 bits, so that no coordinate can overflow.
     let (ew, eh) = (ex_w as i64, ex_h as i64);
     let coherent = |a: [i32; 2], b: [i32; 2], e: [i64; 2]| {
@@ -1064,21 +1077,8 @@ pub fn layout_repetition(
     ex_h: u32,
     tileable: bool,
 ) -> Result<LayoutRepetition> {
+    check_coord_map(coords, out_w, out_h, ex_w, ex_h)?;
     let (w, h) = (out_w as usize, out_h as usize);
-    if w == 0 || h == 0 || coords.is_empty() {
-        return Err(invalid(format!(
-            "coordinate map is empty ({out_w}x{out_h})"
-        )));
-    }
-    if coords.len() as u64 != w as u64 * h as u64 {
-        return Err(invalid(format!(
-            "coordinate map holds {} entries for a {out_w}x{out_h} output",
-            coords.len()
-        )));
-    }
-    if ex_w == 0 || ex_h == 0 {
-        return Err(invalid(format!("exemplar size {ex_w}x{ex_h} is empty")));
-    }
     let key = |c: [i32; 2]| -> (i64, i64) {
         let (x, y) = (c[0] as i64, c[1] as i64);
         if tileable {
