@@ -1043,13 +1043,19 @@ pub const REPEAT_BIN: i32 = 8;
 /// which grows with the square of the area.
 pub const MAX_REPEAT_WINDOW: u32 = 512;
 
+/// Beyond this many pairs (outputs many times the exemplar's size, or degenerate maps
+/// that copy few exemplar pixels) [`layout_repetition`] counts a random share of them.
+const MAX_REPEAT_PAIRS: f64 = 5e7;
+
 /// How much of the output's layout repeats at one displacement: see
 /// [`layout_repetition`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LayoutRepetition {
     /// Output pixels whose exemplar pixel is copied again at the most frequent
     /// displacement (binned), over all output pixels: 0 when the layout never repeats,
-    /// about `1 - 1/n` for the exemplar tiled `n` times across.
+    /// about `1 - 1/n` for the exemplar tiled `n` times across. A bin holds 64
+    /// displacements, so a degenerate map (one exemplar pixel copied everywhere) reaches
+    /// up to 64.
     pub share: f64,
     /// That displacement `[dx, dy]` in output pixels (the mean of the pairs in its bin);
     /// `[0, 0]` when no pixel repeats.
@@ -1066,7 +1072,8 @@ pub struct LayoutRepetition {
 /// whether those copies keep one displacement: a random layout puts about
 /// `REPEAT_BIN^2 / exemplar pixels` of them in a bin (0.4% for a 128x128 exemplar).
 /// Outputs larger than [`MAX_REPEAT_WINDOW`] are measured on their central window of
-/// that size.
+/// that size; beyond 5e7 pairs a random sample of the pixels is paired (an estimate,
+/// still deterministic).
 ///
 /// Errors: as [`verbatim_stats`].
 pub fn layout_repetition(
@@ -1098,18 +1105,47 @@ pub fn layout_repetition(
         .flat_map(|y| (0..cw).map(move |x| ((y0 + y) * w + x0 + x) as u32))
         .collect();
     order.sort_by_key(|&i| key(coords[i as usize]));
-    // Bin -> (pairs, dx sum, dy sum); a BTreeMap, so that ties resolve in bin order.
-    let mut bins: std::collections::BTreeMap<(i32, i32), (u64, i64, i64)> = Default::default();
-    let min2 = MIN_REPEAT_DISTANCE * MIN_REPEAT_DISTANCE;
-    let mut start = 0;
-    while start < order.len() {
-        let k = key(coords[order[start] as usize]);
-        let mut end = start + 1;
-        while end < order.len() && key(coords[order[end] as usize]) == k {
-            end += 1;
+    // Pairs of each group of pixels sharing an exemplar pixel; beyond a budget, pixels
+    // are kept at random (a hash of their index, so the figure stays deterministic) with
+    // probability rho, and each counted pair stands for 1 / rho^2: unbiased, unlike a
+    // regular subsample, which aliases with a periodic layout.
+    let groups = |order: &[u32]| -> Vec<std::ops::Range<usize>> {
+        let mut out = Vec::new();
+        let mut start = 0;
+        while start < order.len() {
+            let k = key(coords[order[start] as usize]);
+            let mut end = start + 1;
+            while end < order.len() && key(coords[order[end] as usize]) == k {
+                end += 1;
+            }
+            out.push(start..end);
+            start = end;
         }
-        let group = &order[start..end];
-        start = end;
+        out
+    };
+    let pairs: f64 = groups(&order)
+        .iter()
+        .map(|g| (g.len() as f64) * (g.len() as f64 - 1.0) / 2.0)
+        .sum();
+    let rho = (MAX_REPEAT_PAIRS / pairs.max(1.0)).sqrt().min(1.0);
+    if rho < 1.0 {
+        let keep = (rho * 4_294_967_296.0) as u64;
+        order.retain(|&i| {
+            let mut z = (i as u64).wrapping_add(0x9e37_79b9_7f4a_7c15);
+            z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+            ((z ^ (z >> 31)) >> 32) < keep
+        });
+    }
+    // Bins of (pairs, dx sum, dy sum) over the forward displacements (dy >= 0).
+    let (cwi, chi) = (cw as i32, ch as i32);
+    let bx0 = (1 - cwi).div_euclid(REPEAT_BIN);
+    let nbx = ((cwi - 1).div_euclid(REPEAT_BIN) - bx0 + 1) as usize;
+    let nby = ((chi - 1).div_euclid(REPEAT_BIN) + 1) as usize;
+    let mut bins = vec![(0u64, 0i64, 0i64); nbx * nby];
+    let min2 = MIN_REPEAT_DISTANCE * MIN_REPEAT_DISTANCE;
+    for g in groups(&order) {
+        let group = &order[g];
         for (a, &i) in group.iter().enumerate() {
             let (xa, ya) = ((i as usize % w) as i32, (i as usize / w) as i32);
             for &j in &group[a + 1..] {
@@ -1117,29 +1153,26 @@ pub fn layout_repetition(
                 if ((dx * dx + dy * dy) as f64) < min2 {
                     continue;
                 }
-                let e = bins
-                    .entry((dx.div_euclid(REPEAT_BIN), dy.div_euclid(REPEAT_BIN)))
-                    .or_insert((0, 0, 0));
+                let b = (dy.div_euclid(REPEAT_BIN) as usize) * nbx
+                    + (dx.div_euclid(REPEAT_BIN) - bx0) as usize;
+                let e = &mut bins[b];
                 e.0 += 1;
                 e.1 += dx as i64;
                 e.2 += dy as i64;
             }
         }
     }
-    // The fullest bin; ties go to the first in bin order (deterministic).
+    // The fullest bin; ties go to the first in row-major bin order (deterministic).
     let best = bins
-        .values()
-        .fold(None::<(u64, i64, i64)>, |b, &v| match b {
-            Some(b) if b.0 >= v.0 => Some(b),
-            _ => Some(v),
-        });
+        .iter()
+        .fold((0u64, 0i64, 0i64), |b, &v| if v.0 > b.0 { v } else { b });
     Ok(match best {
-        None => LayoutRepetition {
+        (0, _, _) => LayoutRepetition {
             share: 0.0,
             vector: [0.0, 0.0],
         },
-        Some((n, sx, sy)) => LayoutRepetition {
-            share: n as f64 / (cw * ch) as f64,
+        (n, sx, sy) => LayoutRepetition {
+            share: n as f64 / (rho * rho) / (cw * ch) as f64,
             vector: [sx as f64 / n as f64, sy as f64 / n as f64],
         },
     })
