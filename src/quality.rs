@@ -1123,7 +1123,8 @@ pub fn layout_repetition(
         }
         out
     };
-    let pairs: f64 = groups(&order)
+    let mut ranges = groups(&order);
+    let pairs: f64 = ranges
         .iter()
         .map(|g| (g.len() as f64) * (g.len() as f64 - 1.0) / 2.0)
         .sum();
@@ -1136,6 +1137,7 @@ pub fn layout_repetition(
             z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
             ((z ^ (z >> 31)) >> 32) < keep
         });
+        ranges = groups(&order);
     }
     // Bins of (pairs, dx sum, dy sum) over the forward displacements (dy >= 0).
     let (cwi, chi) = (cw as i32, ch as i32);
@@ -1144,7 +1146,7 @@ pub fn layout_repetition(
     let nby = ((chi - 1).div_euclid(REPEAT_BIN) + 1) as usize;
     let mut bins = vec![(0u64, 0i64, 0i64); nbx * nby];
     let min2 = MIN_REPEAT_DISTANCE * MIN_REPEAT_DISTANCE;
-    for g in groups(&order) {
+    for g in ranges {
         let group = &order[g];
         for (a, &i) in group.iter().enumerate() {
             let (xa, ya) = ((i as usize % w) as i32, (i as usize / w) as i32);
