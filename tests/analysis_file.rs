@@ -124,11 +124,28 @@ fn synthetic(width: u32, height: u32, k: u32, tileable: bool, seed: u64) -> Anal
     }
 }
 
-fn fnv1a(bytes: &[u8]) -> u64 {
-    let mut h: u64 = 0xcbf29ce484222325;
-    for &b in bytes {
-        h ^= b as u64;
-        h = h.wrapping_mul(0x100000001b3);
+/// The file's checksum, written from the format's description (src/analysis/file.rs):
+/// FNV-1a 64 in four lanes of little-endian u64 words, a byte-wise tail, then byte-wise
+/// FNV-1a over the lanes' and the tail's bytes.
+fn checksum(bytes: &[u8]) -> u64 {
+    const OFFSET: u64 = 0xcbf29ce484222325;
+    const PRIME: u64 = 0x100000001b3;
+    let bytewise = |mut h: u64, b: &[u8]| {
+        for &x in b {
+            h = (h ^ x as u64).wrapping_mul(PRIME);
+        }
+        h
+    };
+    let whole = bytes.len() / 32 * 32;
+    let mut lanes = [OFFSET; 4];
+    for (i, w) in bytes[..whole].chunks_exact(8).enumerate() {
+        let w = u64::from_le_bytes(w.try_into().unwrap());
+        lanes[i % 4] = (lanes[i % 4] ^ w).wrapping_mul(PRIME);
+    }
+    let tail = bytewise(OFFSET, &bytes[whole..]);
+    let mut h = OFFSET;
+    for v in lanes.iter().chain([&tail]) {
+        h = bytewise(h, &v.to_le_bytes());
     }
     h
 }
@@ -139,7 +156,7 @@ fn wrap(payload: &[u8]) -> Vec<u8> {
     v.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
     v.extend_from_slice(&(payload.len() as u64).to_le_bytes());
     v.extend_from_slice(payload);
-    v.extend_from_slice(&fnv1a(payload).to_le_bytes());
+    v.extend_from_slice(&checksum(payload).to_le_bytes());
     v
 }
 
@@ -208,9 +225,12 @@ fn round_trip_bytes_and_struct() {
         }
         let bytes = a.to_bytes();
         assert_eq!(&bytes[..8], b"TEXSYNA\0");
-        assert_eq!(u32::from_le_bytes(bytes[8..12].try_into().unwrap()), 2);
+        assert_eq!(u32::from_le_bytes(bytes[8..12].try_into().unwrap()), 3);
         let plen = u64::from_le_bytes(bytes[12..20].try_into().unwrap());
         assert_eq!(plen as usize + HEADER_LEN + 8, bytes.len());
+        // The checksum is the documented one (the writer hashes in chunks of its own).
+        let stored = u64::from_le_bytes(bytes[bytes.len() - 8..].try_into().unwrap());
+        assert_eq!(stored, checksum(payload_of(&bytes)));
         let b = Analysis::from_bytes(&bytes, &p()).unwrap();
         assert_eq!(a, b);
         assert_eq!(b.to_bytes(), bytes);
@@ -309,23 +329,33 @@ fn wrong_version() {
     expect_bad(
         &bytes,
         &[
-            "analysis file version 7 is not supported by this texsyn (expects 2)",
+            "analysis file version 7 is not supported by this texsyn (expects 3)",
             "re-run `texsyn analyze`",
         ],
         4096,
     );
     // The version is reported even when the rest of the file has another layout.
     expect_bad(
-        b"TEXSYNA\0\x03\0\0\0",
-        &["version 3 is not supported"],
+        b"TEXSYNA\0\x04\0\0\0",
+        &["version 4 is not supported"],
         4096,
     );
-    // Files of the previous layout (version 1, without the appearance settings).
+    // Files of the previous layouts (version 1, without the appearance settings;
+    // version 2, with the byte-wise checksum).
+    expect_bad(
+        b"TEXSYNA\0\x02\0\0\0",
+        &[
+            "version 2 is not supported",
+            "expects 3",
+            "re-run `texsyn analyze`",
+        ],
+        4096,
+    );
     expect_bad(
         b"TEXSYNA\0\x01\0\0\0",
         &[
             "version 1 is not supported",
-            "expects 2",
+            "expects 3",
             "re-run `texsyn analyze`",
         ],
         4096,

@@ -6,13 +6,14 @@
 //! ```text
 //! offset  size  field
 //! 0       8     magic  b"TEXSYNA\0"
-//! 8       4     u32    format version (FORMAT_VERSION = 2)
+//! 8       4     u32    format version (FORMAT_VERSION = 3)
 //! 12      8     u64    payload length P in bytes
 //! 20      P     payload (below)
-//! 20+P    8     u64    FNV-1a 64 checksum of the P payload bytes
+//! 20+P    8     u64    checksum of the P payload bytes: FNV-1a 64 in four lanes
+//!                      of u64 words (version 2: plain FNV-1a 64; see `Checksum`)
 //! ```
 //!
-//! Payload, version 2 (version 1 lacked the trailer after the levels):
+//! Payload, versions 2 and 3 (version 1 lacked the trailer after the levels):
 //!
 //! ```text
 //! u32 width, u32 height, u32 channels, u8 tileable (0|1), u32 k
@@ -52,7 +53,7 @@ use crate::error::{Error, Result};
 /// First 8 bytes of every analysis file.
 pub const MAGIC: [u8; 8] = *b"TEXSYNA\0";
 /// Version of the layout written by this texsyn; the only one it reads.
-pub const FORMAT_VERSION: u32 = 2;
+pub const FORMAT_VERSION: u32 = 3;
 /// Magic + version + payload length.
 const HEADER_LEN: usize = 8 + 4 + 8;
 const CHECKSUM_LEN: usize = 8;
@@ -70,29 +71,79 @@ const APPEARANCE_TRAILER_LEN: u64 = 1 + 1 + 3 * 4;
 
 const FNV_OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
 const FNV_PRIME: u64 = 0x0000_0100_0000_01b3;
+/// Bytes per block of the checksum: four lanes of one u64 word each.
+const BLOCK: usize = 32;
 
-/// FNV-1a 64, streaming.
-#[derive(Clone, Copy)]
-struct Fnv1a(u64);
-
-impl Fnv1a {
-    fn new() -> Self {
-        Fnv1a(FNV_OFFSET)
+fn fnv1a_bytes(mut h: u64, bytes: &[u8]) -> u64 {
+    for &b in bytes {
+        h ^= b as u64;
+        h = h.wrapping_mul(FNV_PRIME);
     }
-    fn update(&mut self, bytes: &[u8]) {
-        let mut h = self.0;
-        for &b in bytes {
-            h ^= b as u64;
-            h = h.wrapping_mul(FNV_PRIME);
+    h
+}
+
+/// The file's checksum (version 3), streaming: FNV-1a 64 in four lanes. The payload is
+/// read as little-endian u64 words, word `i` going into lane `i % 4` as
+/// `h = (h ^ word) * prime`; the bytes after the last whole 32-byte block go through
+/// plain byte-wise FNV-1a (the tail); the result is byte-wise FNV-1a of the four lanes'
+/// and then the tail's little-endian bytes. Every state starts at the FNV offset basis.
+/// Why not plain FNV-1a (version 2): its one multiply per byte in a dependency chain
+/// took 5.6 ms of the 10 ms load of a 4.6 MiB file; four lanes of words take 0.4 ms.
+#[derive(Clone, Copy)]
+struct Checksum {
+    lanes: [u64; 4],
+    pending: [u8; BLOCK],
+    n_pending: usize,
+}
+
+impl Checksum {
+    fn new() -> Self {
+        Checksum {
+            lanes: [FNV_OFFSET; 4],
+            pending: [0; BLOCK],
+            n_pending: 0,
         }
-        self.0 = h;
+    }
+    fn block(&mut self, block: &[u8]) {
+        for (h, w) in self.lanes.iter_mut().zip(block.chunks_exact(8)) {
+            *h = (*h ^ u64::from_le_bytes(w.try_into().unwrap())).wrapping_mul(FNV_PRIME);
+        }
+    }
+    fn update(&mut self, mut bytes: &[u8]) {
+        if self.n_pending > 0 {
+            let take = (BLOCK - self.n_pending).min(bytes.len());
+            self.pending[self.n_pending..self.n_pending + take].copy_from_slice(&bytes[..take]);
+            self.n_pending += take;
+            bytes = &bytes[take..];
+            if self.n_pending < BLOCK {
+                return;
+            }
+            let pending = self.pending;
+            self.block(&pending);
+            self.n_pending = 0;
+        }
+        let mut blocks = bytes.chunks_exact(BLOCK);
+        for b in &mut blocks {
+            self.block(b);
+        }
+        let rest = blocks.remainder();
+        self.pending[..rest.len()].copy_from_slice(rest);
+        self.n_pending = rest.len();
+    }
+    fn finish(&self) -> u64 {
+        let tail = fnv1a_bytes(FNV_OFFSET, &self.pending[..self.n_pending]);
+        let mut h = FNV_OFFSET;
+        for v in self.lanes.iter().chain([&tail]) {
+            h = fnv1a_bytes(h, &v.to_le_bytes());
+        }
+        h
     }
 }
 
-fn fnv1a(bytes: &[u8]) -> u64 {
-    let mut h = Fnv1a::new();
+fn checksum(bytes: &[u8]) -> u64 {
+    let mut h = Checksum::new();
     h.update(bytes);
-    h.0
+    h.finish()
 }
 
 // ---------------------------------------------------------------------------------------
@@ -103,7 +154,7 @@ fn fnv1a(bytes: &[u8]) -> u64 {
 struct PayloadWriter<'a, W: Write> {
     out: &'a mut W,
     buf: Vec<u8>,
-    hash: Fnv1a,
+    hash: Checksum,
     written: u64,
 }
 
@@ -114,7 +165,7 @@ impl<'a, W: Write> PayloadWriter<'a, W> {
         Self {
             out,
             buf: Vec::with_capacity(CHUNK),
-            hash: Fnv1a::new(),
+            hash: Checksum::new(),
             written: 0,
         }
     }
@@ -158,7 +209,7 @@ impl<'a, W: Write> PayloadWriter<'a, W> {
     /// Flushes and returns (payload bytes written, checksum).
     fn finish(mut self) -> std::io::Result<(u64, u64)> {
         self.flush_buf()?;
-        Ok((self.written, self.hash.0))
+        Ok((self.written, self.hash.finish()))
     }
 }
 
@@ -328,7 +379,7 @@ impl Analysis {
         let payload_end = HEADER_LEN + payload_len as usize;
         let payload = &bytes[HEADER_LEN..payload_end];
         let stored = u64::from_le_bytes(bytes[payload_end..].try_into().unwrap());
-        if fnv1a(payload) != stored {
+        if checksum(payload) != stored {
             return Err(bad(format!(
                 "checksum mismatch: the file is corrupt; {RERUN}"
             )));
@@ -641,5 +692,40 @@ impl Analysis {
             }
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Streamed in pieces of any length, the checksum is the one-shot one.
+    #[test]
+    fn checksum_streams_in_any_pieces() {
+        let bytes: Vec<u8> = (0..1000u32)
+            .map(|i| (i * 2654435761u32 >> 13) as u8)
+            .collect();
+        for len in [0, 1, 31, 32, 33, 64, 100, 1000] {
+            let one = checksum(&bytes[..len]);
+            for step in [1, 3, 7, 32, 33, 250] {
+                let mut h = Checksum::new();
+                for piece in bytes[..len].chunks(step) {
+                    h.update(piece);
+                }
+                assert_eq!(h.finish(), one, "len {len}, pieces of {step}");
+            }
+        }
+        // Every byte counts, whole blocks and tail alike.
+        let mut b = bytes.clone();
+        b[5] ^= 1;
+        assert_ne!(checksum(&b), checksum(&bytes));
+        let mut b = bytes.clone();
+        b[999] ^= 0x80;
+        assert_ne!(checksum(&b), checksum(&bytes));
+        // Lanes are not interchangeable: swapping two words changes the sum.
+        let mut b = bytes.clone();
+        b.copy_within(0..8, 8);
+        b[..8].copy_from_slice(&bytes[8..16]);
+        assert_ne!(checksum(&b), checksum(&bytes));
     }
 }

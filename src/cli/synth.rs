@@ -409,51 +409,64 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
             .map_err(|e| fail(format!("--also: cannot read {}: {e}", a.input.display())))?;
     }
     let [width, height] = args.size;
-    // The field (a file's size and values too) before the analysis.
-    let field = match &args.field {
-        Some(f) => Some(f.resolve(args.window, width, height)?),
-        None => None,
-    };
     // What the output file holds (larger than the synthesis with --magnify).
     let mut out_size = (width, height);
+    // The device is created on a thread of its own while the input is read: loading the
+    // driver is mostly waiting, and reading an analysis file is the other large part of
+    // the fixed cost of a synthesis from a file. Joined before any error is returned, so
+    // that no exit happens in the middle of the driver's start-up.
+    let device = std::thread::spawn(|| {
+        let t = Instant::now();
+        (GpuContext::headless(), t.elapsed())
+    });
+    let input = (|| -> CliResult<_> {
+        // The field (a file's size and values too) before the analysis.
+        let field = match &args.field {
+            Some(f) => Some(f.resolve(args.window, width, height)?),
+            None => None,
+        };
 
-    // Read the input first (cheap), then check the size against the device, and only
-    // then analyse (expensive).
-    let t = Instant::now();
-    let mut source = read_source(ui, &args.exemplar, args.k, args.tile.get())?;
-    let read_time = t.elapsed();
-    if let Source::Analysis(a) = &source {
-        // The appearance space is fixed by the analysis: options that would change it
-        // are refused rather than silently ignored.
-        if args.appearance.feature_mask.is_some() {
-            return Err(fail(format!(
-                "--feature-mask applies when analysing an image; {} is an analysis file: re-run `texsyn analyze --feature-mask ...`",
-                args.exemplar.display()
-            )));
+        // Read the input first (cheap), then check the size against the device, and only
+        // then analyse (expensive).
+        let t = Instant::now();
+        let mut source = read_source(ui, &args.exemplar, args.k, args.tile.get())?;
+        let read_time = t.elapsed();
+        if let Source::Analysis(a) = &source {
+            // The appearance space is fixed by the analysis: options that would change it
+            // are refused rather than silently ignored.
+            if args.appearance.feature_mask.is_some() {
+                return Err(fail(format!(
+                    "--feature-mask applies when analysing an image; {} is an analysis file: re-run `texsyn analyze --feature-mask ...`",
+                    args.exemplar.display()
+                )));
+            }
+            if args.appearance.appearance != a.appearance {
+                return Err(fail(format!(
+                    "--appearance does not match the analysis file {}; drop it or re-run `texsyn analyze --appearance ...`",
+                    args.exemplar.display()
+                )));
+            }
         }
-        if args.appearance.appearance != a.appearance {
-            return Err(fail(format!(
-                "--appearance does not match the analysis file {}; drop it or re-run `texsyn analyze --appearance ...`",
-                args.exemplar.display()
-            )));
+        // Magnification: analyse a downsampled copy, keep the full colours.
+        let mut hi_res = None;
+        // The size extra maps must have: the exemplar's (before any downsampling).
+        let mut full_size = None;
+        if let Source::Image(ex) = &source {
+            full_size = Some((ex.width, ex.height));
         }
-    }
-    // Magnification: analyse a downsampled copy, keep the full colours.
-    let mut hi_res = None;
-    // The size extra maps must have: the exemplar's (before any downsampling).
-    let mut full_size = None;
-    if let Source::Image(ex) = &source {
-        full_size = Some((ex.width, ex.height));
-    }
-    if let Some(f) = args.magnify {
-        let (small, hi) = magnify_source(source, f)?;
-        source = small;
-        hi_res = Some(hi);
-    }
+        if let Some(f) = args.magnify {
+            let (small, hi) = magnify_source(source, f)?;
+            source = small;
+            hi_res = Some(hi);
+        }
+        Ok((field, source, read_time, hi_res, full_size))
+    })();
+    let (ctx, device_time) = device
+        .join()
+        .map_err(|_| fail("creating the GPU device failed (its thread panicked)".to_string()))?;
+    let (field, source, read_time, hi_res, full_size) = input?;
+    let ctx = ctx?;
 
-    let t = Instant::now();
-    let ctx = GpuContext::headless()?;
-    let device_time = t.elapsed();
     ui.info(format!("adapter: {}", ctx.describe()));
     // An output larger than the device takes in one piece is synthesized in windows and
     // assembled (the same bytes); a periodic or magnified one cannot be split.
