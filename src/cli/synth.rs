@@ -47,9 +47,10 @@ pub struct SynthArgs {
     pub seed: u32,
 
     /// Jitter randomness in [0, 2]: one value for every level, or R0,R1,... per level
-    /// (coarsest first, the last repeats). Default: 1 on the coarse levels, 0.75 on the
-    /// fourth-finest, 0 on the three finest (exemplars under 128 px: 0.5 on the
-    /// third-finest, 0 below; under 80 px: every level but the finest at 1)
+    /// (coarsest first, the last repeats). Default, by the exemplar's smaller side: 0 on
+    /// the N finest levels, W on the next, 1 on the coarser ones, with N, W = 1, 1 under
+    /// 80 px; 2, 0.5 under 128; 3, 0.75 under 176; 3, 0.25 under 288; 4, 0.25 under 448;
+    /// 5, 0.75 from 448
     #[arg(long, value_name = "R|R0,R1,...", value_parser = parse_randomness)]
     pub randomness: Option<Randomness>,
 

@@ -8,7 +8,7 @@ use wgpu::util::DeviceExt;
 
 use super::context::GpuContext;
 use super::shaders::{self, ShaderSource};
-use crate::analysis::{Analysis, DIM};
+use crate::analysis::{Analysis, LevelData, DIM};
 use crate::error::{Error, Result};
 use crate::passes::common::{PassParams, PARAMS_STRIDE};
 use crate::passes::plan::{Dispatch, PassKind, SynthPlan};
@@ -662,19 +662,10 @@ impl GpuSynthesizer {
         let a = &*analysis;
         a.validate()?;
         check_exemplar_fits(ctx, a.width, a.height, a.k)?;
-        let px = a.width as u64 * a.height as u64;
-        let levels = a.levels.len() as u64;
         let device = &ctx.device;
         ctx.scoped(|| {
-            let mut et = Vec::with_capacity((px * levels) as usize);
-            let mut qe = Vec::with_capacity((px * levels) as usize);
-            let mut offsets =
-                Vec::with_capacity((px * levels) as usize * a.k.saturating_sub(1) as usize);
             let mut proj: Vec<i32> = Vec::with_capacity(a.levels.len() * 256);
             for l in &a.levels {
-                et.extend_from_slice(&l.et);
-                qe.extend_from_slice(&l.qe);
-                offsets.extend_from_slice(&l.offsets);
                 // Per diagonal block j, per column c: rows 0-3 then rows 4-7 (the layout
                 // project_diagonal in correct.wgsl reads).
                 for j in 0..4 {
@@ -685,6 +676,37 @@ impl GpuSynthesizer {
                     }
                 }
             }
+            // The per-level tables are written straight into buffers mapped at creation,
+            // level after level: no concatenated copy on the host. Each copy of fresh
+            // memory costs its page faults, which on a CPU device were most of the upload
+            // (a 400 px exemplar's 55 MB of tables).
+            let levels_buffer = |label: &str, part: &dyn Fn(&LevelData) -> &[u8]| {
+                let len: usize = a.levels.iter().map(|l| part(l).len()).sum();
+                let size = len.max(16).next_multiple_of(4);
+                let buffer = device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some(label),
+                    size: size as u64,
+                    usage: wgpu::BufferUsages::STORAGE,
+                    mapped_at_creation: true,
+                });
+                {
+                    let mut view = buffer
+                        .get_mapped_range_mut(..)
+                        .map_err(|e| Error::Gpu(format!("uploading the analysis: {e}")))?;
+                    let mut at = 0;
+                    for l in &a.levels {
+                        let b = part(l);
+                        view.slice(at..at + b.len()).copy_from_slice(b);
+                        at += b.len();
+                    }
+                    // The rest (padding) is zero: mapped-at-creation memory starts zeroed.
+                }
+                buffer.unmap();
+                Ok::<_, Error>(buffer)
+            };
+            let et = levels_buffer("texsyn et", &|l| bytemuck::cast_slice(&l.et))?;
+            let qe = levels_buffer("texsyn qe", &|l| bytemuck::cast_slice(&l.qe))?;
+            let offsets = levels_buffer("texsyn offsets", &|l| bytemuck::cast_slice(&l.offsets))?;
             let init = |label: &str, contents: &[u8]| {
                 device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                     label: Some(label),
@@ -692,9 +714,6 @@ impl GpuSynthesizer {
                     usage: wgpu::BufferUsages::STORAGE,
                 })
             };
-            let et = init("texsyn et", &padded(&et));
-            let qe = init("texsyn qe", &padded(&qe));
-            let offsets = init("texsyn offsets", &padded(&offsets));
             let proj = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("texsyn proj"),
                 contents: bytemuck::cast_slice(&proj),
@@ -702,7 +721,7 @@ impl GpuSynthesizer {
             });
             let colors = init("texsyn colors", &padded(&a.colors));
 
-            Self {
+            Ok(Self {
                 pipelines: ctx.pass_pipelines(),
                 no_velocity: init("texsyn no velocity", &[0u8; 16]),
                 et,
@@ -715,8 +734,8 @@ impl GpuSynthesizer {
                 fine: std::sync::OnceLock::new(),
                 jacobians: Mutex::new(None),
                 progress: Mutex::new(None),
-            }
-        })
+            })
+        })?
     }
 
     pub fn analysis(&self) -> &Analysis {

@@ -155,19 +155,37 @@ impl Default for SynthParams {
 /// measured largest verbatim region (3-4 seeds, 512x512 output) 0.25-0.35 of a 96 px
 /// exemplar and 0.25-0.28 of a 64 px one with the 128 px schedule; 0.17-0.26 and
 /// 0.19-0.27 with the schedules below.
-/// - min side >= 128: 0 on the three finest levels, 0.75 on the fourth, 1 above (0.5 on
+/// - min side 128..176: 0 on the three finest levels, 0.75 on the fourth, 1 above (0.5 on
 ///   the fourth let the largest verbatim region reach 0.30-0.34 of a 128 px exemplar on
 ///   2 of 5 seeds; 0.75 kept it at 0.15-0.28 for +0-4% texture energy (pink marble,
 ///   energy x 1e3, mean of 5 seeds: 0.177 -> 0.183), where jitter one level further
 ///   down costs +17-24%);
 /// - 80..128: 0 on the two finest, 0.5 on the third, 1 above;
 /// - under 80: 0 on the finest, 1 above.
+///
+/// Larger exemplars jitter less. With the 128 px schedule the patches keep their size in
+/// pixels, so they shrink against a larger exemplar and the seams multiply. Measured on
+/// photos resized to each size (three CC0 photos, and the 168-400 px samples of the
+/// `texture-synthesis` repository, not shipped), 512x512 outputs, seeds 1-3,
+/// full-resolution texture energy over `texture-synthesis`'s (median), 128 px schedule
+/// -> the ones below: 176 px 1.01 -> 0.93, 256 px 1.24 -> 1.14, 384 px 1.94 -> 1.27,
+/// 512 px 4.2 -> 2.45 (there `texture-synthesis` copies 28-39% of the exemplar
+/// verbatim). The largest verbatim region stayed at most 0.145 (176-287 px), 0.133
+/// (288-447 px, a brick wall included) and 0.183 (448-512 px) of the exemplar. One
+/// still level more than below reached 0.26-0.31 at 176-256 px and 0.29-0.48 at 300-400
+/// px (brick walls and other regular textures tip over into copying first):
+/// - 176..288: 0 on the three finest levels, 0.25 on the fourth, 1 above;
+/// - 288..448: 0 on the four finest, 0.25 on the fifth, 1 above;
+/// - 448 and up: 0 on the five finest, 0.75 on the sixth, 1 above.
 pub fn default_randomness(level: u32, finest: u32, exemplar_min_side: u32) -> f32 {
     let from_finest = finest.saturating_sub(level);
     let (still, partial) = match exemplar_min_side {
         0..80 => (1, None),
         80..128 => (2, Some((2, 0.5))),
-        _ => (3, Some((3, 0.75))),
+        128..176 => (3, Some((3, 0.75))),
+        176..288 => (3, Some((3, 0.25))),
+        288..448 => (4, Some((4, 0.25))),
+        _ => (5, Some((5, 0.75))),
     };
     match partial {
         _ if from_finest < still => 0.0,
@@ -873,4 +891,39 @@ fn passes_at(params: &SynthParams, level: u32, last: u32) -> u32 {
         return params.finest_passes;
     }
     params.passes
+}
+
+#[cfg(test)]
+mod tests {
+    use super::default_randomness;
+
+    /// The schedule, finest level first, for an exemplar of the given smaller side.
+    fn schedule(side: u32) -> Vec<f32> {
+        let finest = 32 - (side - 1).leading_zeros();
+        (0..=finest).rev().map(|l| default_randomness(l, finest, side)).collect()
+    }
+
+    #[test]
+    fn still_levels_grow_with_the_exemplar() {
+        // (smaller side, still levels, weight of the first jittered level)
+        for (side, still, partial) in [
+            (16, 1, 1.0),
+            (79, 1, 1.0),
+            (80, 2, 0.5),
+            (127, 2, 0.5),
+            (128, 3, 0.75),
+            (175, 3, 0.75),
+            (176, 3, 0.25),
+            (287, 3, 0.25),
+            (288, 4, 0.25),
+            (447, 4, 0.25),
+            (448, 5, 0.75),
+            (4096, 5, 0.75),
+        ] {
+            let s = schedule(side);
+            assert!(s[..still].iter().all(|&r| r == 0.0), "{side}: {s:?}");
+            assert_eq!(s[still], partial, "{side}: {s:?}");
+            assert!(s[still + 1..].iter().all(|&r| r == 1.0), "{side}: {s:?}");
+        }
+    }
 }
