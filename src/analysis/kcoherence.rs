@@ -53,6 +53,8 @@ pub struct SimilarityQuery<'a> {
     /// The offsets found at the next coarser level (same layout as the result), tried
     /// first; `None` when that level was not searched.
     pub init: Option<&'a [[i16; 2]]>,
+    /// Half the PatchMatch iterations and half the kd-tree checks (large exemplars).
+    pub light: bool,
 }
 
 const NONE: u32 = u32::MAX;
@@ -250,7 +252,7 @@ pub fn similarity_offsets(
         ITERATIONS_AFTER_KD
     } else {
         ITERATIONS
-    };
+    } >> q.light as u32;
     let steps = (1 + use_kd as usize + iterations) as f32;
     progress(1.0 / steps);
     if use_kd {
@@ -269,7 +271,7 @@ pub fn similarity_offsets(
             KD_CHECKS_FINEST
         } else {
             KD_CHECKS
-        };
+        } >> q.light as u32;
         let prev = &state;
         state = par_ranges(n, threads, |range| {
             let mut out = Vec::with_capacity(range.len() * want);
@@ -515,6 +517,7 @@ mod tests {
                     k,
                     spacing,
                     init: None,
+                    light: false,
                 };
                 let a = similarity_offsets(&q, 1, &mut |_| {});
                 assert_eq!(a.len(), (w * h * (k - 1)) as usize);
@@ -572,6 +575,7 @@ mod tests {
                 let again = similarity_offsets(
                     &SimilarityQuery {
                         init: Some(&a),
+                        light: false,
                         ..q
                     },
                     1,
@@ -609,6 +613,7 @@ mod tests {
             k: 3,
             spacing: 1,
             init: None,
+            light: false,
         };
         // Every member is inside the exclusion zone: the pixel itself.
         assert!(similarity_offsets(&q, 2, &mut |_| {})

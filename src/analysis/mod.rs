@@ -29,6 +29,9 @@ pub const PROJ_QMAX: f32 = 127.0;
 pub const QE_MAX: i32 = 4095;
 /// Largest k supported by the GPU passes.
 pub const MAX_K: u32 = 8;
+/// Exemplars of at least this many pixels search their similarity sets with less
+/// effort (see `analyze`).
+pub const LARGE_EXEMPLAR_PIXELS: u64 = 256 * 256;
 
 /// The exemplar as loaded: RGBA8 colours (what synthesis outputs) and the float
 /// channels the analysis runs on (1 for grey exemplars, 3 for colour; alpha is ignored).
@@ -635,12 +638,27 @@ pub fn analyze(
         // store zero offsets (those candidates are then the coherent ones). Saves a
         // quarter of the analysis time of a 128x128 exemplar.
         let searched = |spacing: u32| 4 * spacing < ex.width.min(ex.height);
+        // Large exemplars (256x256 pixels and more) search their sets in Et alone (8D,
+        // the 5x5 neighbourhood) with half the effort: measured on 400 and 512 px
+        // photos, the k-coherence search took 0.5 s less of about 2.3 s of CPU (2
+        // threads) for the same texture energy (within 5%, either sign) and verbatim
+        // figures; smaller exemplars keep the 16D features (Et and the projected
+        // runtime neighbourhood) and the full effort, which cost them little.
+        let large = ex.width as u64 * ex.height as u64 >= LARGE_EXEMPLAR_PIXELS;
+        let et_features: Vec<f32> = if large && searched(spacing) {
+            q.features
+                .chunks_exact(appearance::FEATURE_DIM)
+                .flat_map(|f| f[..DIM].iter().copied())
+                .collect()
+        } else {
+            Vec::new()
+        };
         let offsets = if searched(spacing) {
             report(done, Stage::SimilaritySets, 0.0);
             kcoherence::similarity_offsets(
                 &kcoherence::SimilarityQuery {
-                    features: &q.features,
-                    dim: appearance::FEATURE_DIM,
+                    features: if large { &et_features } else { &q.features },
+                    dim: if large { DIM } else { appearance::FEATURE_DIM },
                     width: ex.width,
                     height: ex.height,
                     tileable,
@@ -653,6 +671,7 @@ pub fn analyze(
                         .last()
                         .filter(|l| searched(l.spacing))
                         .map(|l| &l.offsets[..]),
+                    light: large,
                 },
                 threads,
                 &mut |f| report(done, Stage::SimilaritySets, f),

@@ -900,7 +900,10 @@ mod tests {
     /// The schedule, finest level first, for an exemplar of the given smaller side.
     fn schedule(side: u32) -> Vec<f32> {
         let finest = 32 - (side - 1).leading_zeros();
-        (0..=finest).rev().map(|l| default_randomness(l, finest, side)).collect()
+        (0..=finest)
+            .rev()
+            .map(|l| default_randomness(l, finest, side))
+            .collect()
     }
 
     #[test]
