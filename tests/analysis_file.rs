@@ -187,6 +187,27 @@ fn expect_bad(bytes: &[u8], needles: &[&str], max_alloc: usize) -> String {
         largest <= max_alloc,
         "decoding allocated {largest} bytes at once for {reason:?}"
     );
+    // The same bytes as a file: `load` streams well-formed files and falls back to the
+    // in-memory decoder for anything else, so it must give the same error, and it may
+    // allocate at most the file and its read buffer on top.
+    let dir = TempDir::new("bad");
+    let path = dir.path().join("bad.tsa");
+    std::fs::write(&path, bytes).unwrap();
+    let (r, largest) = largest_alloc(|| Analysis::load(&path));
+    match r {
+        Err(Error::BadAnalysisFile {
+            path: at,
+            reason: r,
+        }) => {
+            assert_eq!(at, path);
+            assert_eq!(r, reason, "load and from_bytes disagree");
+        }
+        other => panic!("load: expected BadAnalysisFile, got {other:?}"),
+    }
+    assert!(
+        largest <= max_alloc.max(bytes.len()) + (1 << 16) + 4096,
+        "load allocated {largest} bytes at once for {reason:?}"
+    );
     reason
 }
 

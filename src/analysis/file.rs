@@ -312,11 +312,44 @@ impl Analysis {
     /// Loads an analysis file written by [`Analysis::save`]. A missing or unreadable file
     /// is [`Error::Io`]; anything wrong with the content is [`Error::BadAnalysisFile`].
     pub fn load(path: &Path) -> Result<Analysis> {
-        let bytes = std::fs::read(path).map_err(|source| Error::Io {
+        let io = |source| Error::Io {
             path: path.to_path_buf(),
             source,
-        })?;
+        };
+        let file = std::fs::File::open(path).map_err(io)?;
+        if let Some(a) = Self::stream(file) {
+            return Ok(a);
+        }
+        // Anything unusual (a short, corrupt or changing file): the in-memory path,
+        // which checks the checksum before the content and so names the first problem.
+        let bytes = std::fs::read(path).map_err(io)?;
         Self::from_bytes(&bytes, path)
+    }
+
+    /// A well-formed file decoded as it is read; `None` on any problem.
+    fn stream(file: std::fs::File) -> Option<Analysis> {
+        use std::io::Read;
+        let len = file.metadata().ok()?.len();
+        let mut file = std::io::BufReader::with_capacity(1 << 16, file);
+        let mut header = [0u8; HEADER_LEN];
+        file.read_exact(&mut header).ok()?;
+        let payload_len = u64::from_le_bytes(header[12..20].try_into().unwrap());
+        let well_formed = header[..8] == MAGIC
+            && u32::from_le_bytes(header[8..12].try_into().unwrap()) == FORMAT_VERSION
+            && payload_len.checked_add((HEADER_LEN + CHECKSUM_LEN) as u64) == Some(len);
+        if !well_formed {
+            return None;
+        }
+        let mut input = FileInput {
+            file,
+            remaining: payload_len,
+            hash: Checksum::new(),
+        };
+        let analysis = decode_payload(&mut input).ok()?;
+        let mut stored = [0u8; CHECKSUM_LEN];
+        input.file.read_exact(&mut stored).ok()?;
+        let end = input.file.read(&mut [0u8; 1]).ok()? == 0;
+        (end && input.hash.finish() == u64::from_le_bytes(stored)).then_some(analysis)
     }
 
     /// Decodes an analysis file's bytes; `path_for_errors` only names the file in errors.
@@ -385,7 +418,11 @@ impl Analysis {
             )));
         }
 
-        decode_payload(payload).map_err(|e| bad(format!("invalid content: {e}; {RERUN}")))
+        decode_payload(&mut Reader {
+            bytes: payload,
+            pos: 0,
+        })
+        .map_err(|e| bad(format!("invalid content: {e}; {RERUN}")))
     }
 }
 
@@ -404,60 +441,137 @@ fn truncated(expected_at_least: usize, found: usize) -> String {
 // Decoding (after the checksum matched, so failures here mean a buggy or crafted file)
 // ---------------------------------------------------------------------------------------
 
+/// What the decoder reads from: the payload in memory ([`Reader`]) or streamed from the
+/// file ([`FileInput`]). Every method names the field it reads, for the error.
+trait Input {
+    fn remaining(&self) -> u64;
+    /// Fills `buf` with the next bytes.
+    fn fill(&mut self, buf: &mut [u8], what: &str) -> std::result::Result<(), String>;
+    /// A u64 element count that must equal `expected`, then its `N`-wide i16 elements.
+    fn i16_arrays<const N: usize>(
+        &mut self,
+        expected: u64,
+        what: &str,
+    ) -> std::result::Result<Vec<[i16; N]>, String>;
+
+    fn u8(&mut self, what: &str) -> std::result::Result<u8, String> {
+        let mut b = [0u8; 1];
+        self.fill(&mut b, what)?;
+        Ok(b[0])
+    }
+    fn u32(&mut self, what: &str) -> std::result::Result<u32, String> {
+        let mut b = [0u8; 4];
+        self.fill(&mut b, what)?;
+        Ok(u32::from_le_bytes(b))
+    }
+    fn u64(&mut self, what: &str) -> std::result::Result<u64, String> {
+        let mut b = [0u8; 8];
+        self.fill(&mut b, what)?;
+        Ok(u64::from_le_bytes(b))
+    }
+    fn f32(&mut self, what: &str) -> std::result::Result<f32, String> {
+        Ok(f32::from_bits(self.u32(what)?))
+    }
+    /// Reads a u64 element count, checks it equals `expected` and that its elements
+    /// (`elem_size` bytes each) fit in what is left; allocates nothing. Returns the
+    /// byte count.
+    fn count(
+        &mut self,
+        expected: u64,
+        elem_size: usize,
+        what: &str,
+    ) -> std::result::Result<usize, String> {
+        let n = self.u64(what)?;
+        if n != expected {
+            return Err(format!("{what} has {n} entries, expected {expected}"));
+        }
+        n.checked_mul(elem_size as u64)
+            .filter(|&b| b <= self.remaining())
+            .map(|b| b as usize)
+            .ok_or_else(|| {
+                format!(
+                    "{what} needs {n} x {elem_size} bytes but the payload has only {} left",
+                    self.remaining()
+                )
+            })
+    }
+}
+
+fn too_short(n: usize, what: &str, left: u64) -> String {
+    format!("{what} needs {n} bytes but the payload has only {left} left")
+}
+
 struct Reader<'a> {
     bytes: &'a [u8],
     pos: usize,
 }
 
 impl<'a> Reader<'a> {
-    fn remaining(&self) -> usize {
-        self.bytes.len() - self.pos
-    }
     fn take(&mut self, n: usize, what: &str) -> std::result::Result<&'a [u8], String> {
-        if self.remaining() < n {
-            return Err(format!(
-                "{what} needs {n} bytes but the payload has only {} left",
-                self.remaining()
-            ));
+        if self.bytes.len() - self.pos < n {
+            return Err(too_short(n, what, (self.bytes.len() - self.pos) as u64));
         }
         let s = &self.bytes[self.pos..self.pos + n];
         self.pos += n;
         Ok(s)
     }
-    fn u8(&mut self, what: &str) -> std::result::Result<u8, String> {
-        Ok(self.take(1, what)?[0])
+}
+
+impl Input for Reader<'_> {
+    fn remaining(&self) -> u64 {
+        (self.bytes.len() - self.pos) as u64
     }
-    fn u32(&mut self, what: &str) -> std::result::Result<u32, String> {
-        Ok(u32::from_le_bytes(self.take(4, what)?.try_into().unwrap()))
+    fn fill(&mut self, buf: &mut [u8], what: &str) -> std::result::Result<(), String> {
+        buf.copy_from_slice(self.take(buf.len(), what)?);
+        Ok(())
     }
-    fn u64(&mut self, what: &str) -> std::result::Result<u64, String> {
-        Ok(u64::from_le_bytes(self.take(8, what)?.try_into().unwrap()))
-    }
-    fn f32(&mut self, what: &str) -> std::result::Result<f32, String> {
-        Ok(f32::from_bits(self.u32(what)?))
-    }
-    /// Reads a u64 element count, checks it equals `expected`, and checks the elements
-    /// (`elem_size` bytes each) are present; returns their bytes. Nothing is allocated.
-    fn counted(
+    fn i16_arrays<const N: usize>(
         &mut self,
         expected: u64,
-        elem_size: usize,
         what: &str,
-    ) -> std::result::Result<&'a [u8], String> {
-        let n = self.u64(what)?;
-        if n != expected {
-            return Err(format!("{what} has {n} entries, expected {expected}"));
+    ) -> std::result::Result<Vec<[i16; N]>, String> {
+        let n = self.count(expected, 2 * N, what)?;
+        Ok(decode_i16_arrays(self.take(n, what)?))
+    }
+}
+
+/// The payload streamed from the file, hashed as it is read. Its arrays are read
+/// straight into their final vectors: reading the whole file first and decoding it
+/// copied every table twice, and on a CPU device the page faults of each copy of fresh
+/// memory were most of the load (a 400 px exemplar's file is 55 MB).
+struct FileInput<R: std::io::Read> {
+    file: R,
+    remaining: u64,
+    hash: Checksum,
+}
+
+impl<R: std::io::Read> Input for FileInput<R> {
+    fn remaining(&self) -> u64 {
+        self.remaining
+    }
+    fn fill(&mut self, buf: &mut [u8], what: &str) -> std::result::Result<(), String> {
+        if (buf.len() as u64) > self.remaining {
+            return Err(too_short(buf.len(), what, self.remaining));
         }
-        let bytes = n
-            .checked_mul(elem_size as u64)
-            .filter(|&b| b <= self.remaining() as u64)
-            .ok_or_else(|| {
-                format!(
-                    "{what} needs {n} x {elem_size} bytes but the payload has only {} left",
-                    self.remaining()
-                )
-            })?;
-        self.take(bytes as usize, what)
+        self.file
+            .read_exact(buf)
+            .map_err(|e| format!("reading {what}: {e}"))?;
+        self.hash.update(buf);
+        self.remaining -= buf.len() as u64;
+        Ok(())
+    }
+    fn i16_arrays<const N: usize>(
+        &mut self,
+        expected: u64,
+        what: &str,
+    ) -> std::result::Result<Vec<[i16; N]>, String> {
+        let n = self.count(expected, 2 * N, what)?;
+        let mut v = vec![[0i16; N]; n / (2 * N)];
+        self.fill(bytemuck::cast_slice_mut(&mut v), what)?;
+        if cfg!(target_endian = "big") {
+            v.iter_mut().flatten().for_each(|x| *x = i16::from_le(*x));
+        }
+        Ok(v)
     }
 }
 
@@ -472,12 +586,7 @@ fn decode_i16_arrays<const N: usize>(bytes: &[u8]) -> Vec<[i16; N]> {
         .collect()
 }
 
-fn decode_payload(payload: &[u8]) -> std::result::Result<Analysis, String> {
-    let mut r = Reader {
-        bytes: payload,
-        pos: 0,
-    };
-
+fn decode_payload(r: &mut impl Input) -> std::result::Result<Analysis, String> {
     let width = r.u32("width")?;
     let height = r.u32("height")?;
     for (name, v) in [("width", width), ("height", height)] {
@@ -500,11 +609,9 @@ fn decode_payload(payload: &[u8]) -> std::result::Result<Analysis, String> {
     }
     let pixels = width as u64 * height as u64;
 
-    let colors: Vec<[u8; 4]> = r
-        .counted(pixels, 4, "colors")?
-        .chunks_exact(4)
-        .map(|c| [c[0], c[1], c[2], c[3]])
-        .collect();
+    let n = r.count(pixels, 4, "colors")?;
+    let mut colors = vec![[0u8; 4]; n / 4];
+    r.fill(colors.as_flattened_mut(), "colors")?;
 
     let top = level_count(width, height);
     let n_levels = r.u32("level count")?;
@@ -538,18 +645,19 @@ fn decode_payload(payload: &[u8]) -> std::result::Result<Analysis, String> {
         let residual_variance = r.f32(&lw("residual variance"))?;
         let runtime_residual_variance = r.f32(&lw("runtime residual variance"))?;
 
-        let proj_bytes = r.take(2 * 4 * DIM * DIM, &lw("projection"))?;
+        let mut proj_bytes = [0u8; 2 * 4 * DIM * DIM];
+        r.fill(&mut proj_bytes, &lw("projection"))?;
         let mut proj = [[0i16; 4 * DIM]; DIM];
         for (i, row) in proj.iter_mut().enumerate() {
             for (j, v) in row.iter_mut().enumerate() {
-                *v = i16_at(proj_bytes, i * 4 * DIM + j);
+                *v = i16_at(&proj_bytes, i * 4 * DIM + j);
             }
         }
 
-        let et = decode_i16_arrays::<DIM>(r.counted(pixels, 2 * DIM, &lw("et"))?);
-        let qe = decode_i16_arrays::<DIM>(r.counted(pixels, 2 * DIM, &lw("qe"))?);
+        let et = r.i16_arrays::<DIM>(pixels, &lw("et"))?;
+        let qe = r.i16_arrays::<DIM>(pixels, &lw("qe"))?;
         let n_offsets = pixels * (k as u64 - 1);
-        let offsets = decode_i16_arrays::<2>(r.counted(n_offsets, 4, &lw("offsets"))?);
+        let offsets = r.i16_arrays::<2>(n_offsets, &lw("offsets"))?;
 
         levels.push(LevelData {
             spacing,
