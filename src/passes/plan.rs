@@ -170,10 +170,10 @@ impl Default for SynthParams {
 /// full-resolution texture energy over `texture-synthesis`'s (median), 128 px schedule
 /// -> the ones below: 176 px 1.01 -> 0.93, 256 px 1.24 -> 1.14, 384 px 1.94 -> 1.27,
 /// 512 px 4.2 -> 2.45 (there `texture-synthesis` copies 28-39% of the exemplar
-/// verbatim). The largest verbatim region stayed at most 0.145 (176-287 px), 0.133
-/// (288-447 px, a brick wall included) and 0.183 (448-512 px) of the exemplar. One
-/// still level more than below reached 0.26-0.31 at 176-256 px and 0.29-0.48 at 300-400
-/// px (brick walls and other regular textures tip over into copying first):
+/// verbatim). The largest verbatim region stayed at most 0.145 (176-287 px), 0.145
+/// (288-447 px, a brick wall included) and 0.177 (448-512 px) of the exemplar. One
+/// still level more than below reached 0.26-0.29 at 176-256 px and 0.21-0.48 on a 350
+/// px brick wall (regular textures tip over into copying first):
 /// - 176..288: 0 on the three finest levels, 0.25 on the fourth, 1 above;
 /// - 288..448: 0 on the four finest, 0.25 on the fifth, 1 above;
 /// - 448 and up: 0 on the five finest, 0.75 on the sixth, 1 above.
