@@ -178,6 +178,7 @@ pub fn quantize_level(
     spacing: u32,
     tileable: bool,
     threads: usize,
+    with_features: bool,
 ) -> QuantizedLevel {
     let (w, h) = (width as usize, height as usize);
     let n = et.len();
@@ -245,26 +246,33 @@ pub fn quantize_level(
     // for the similarity sets: Et and the projected neighbourhood.
     let parts = par_ranges(n, threads, |range| {
         let mut qs = Vec::with_capacity(range.len());
-        let mut feats = Vec::with_capacity(range.len() * FEATURE_DIM);
+        let mut feats = Vec::with_capacity(range.len() * FEATURE_DIM * with_features as usize);
         for p in range {
             let mut q = [0i32; DIM];
-            let mut f = pf_bias;
             for j in 0..4 {
-                let u = diag(p, j);
-                let e = &et_q[u];
-                let ef = &et[u];
+                let e = &et_q[diag(p, j)];
                 for c in 0..DIM {
-                    let (pq, pf) = (&proj_t[j * DIM + c], &pf_t[j * DIM + c]);
-                    let (ev, efv) = (e[c] as i32, ef[c]);
+                    let (pq, ev) = (&proj_t[j * DIM + c], e[c] as i32);
                     for r in 0..DIM {
                         q[r] += pq[r] * ev;
-                        f[r] += pf[r] * efv;
                     }
                 }
             }
             qs.push(q);
-            feats.extend_from_slice(&et[p]);
-            feats.extend_from_slice(&f);
+            if with_features {
+                let mut f = pf_bias;
+                for j in 0..4 {
+                    let ef = &et[diag(p, j)];
+                    for c in 0..DIM {
+                        let (pf, efv) = (&pf_t[j * DIM + c], ef[c]);
+                        for r in 0..DIM {
+                            f[r] += pf[r] * efv;
+                        }
+                    }
+                }
+                feats.extend_from_slice(&et[p]);
+                feats.extend_from_slice(&f);
+            }
         }
         (qs, feats)
     });
