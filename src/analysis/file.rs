@@ -447,12 +447,21 @@ trait Input {
     fn remaining(&self) -> u64;
     /// Fills `buf` with the next bytes.
     fn fill(&mut self, buf: &mut [u8], what: &str) -> std::result::Result<(), String>;
-    /// A u64 element count that must equal `expected`, then its `N`-wide i16 elements.
+    /// A u64 element count that must equal `expected`, then its `N`-wide i16 elements,
+    /// read straight into their vector.
     fn i16_arrays<const N: usize>(
         &mut self,
         expected: u64,
         what: &str,
-    ) -> std::result::Result<Vec<[i16; N]>, String>;
+    ) -> std::result::Result<Vec<[i16; N]>, String> {
+        let n = self.count(expected, 2 * N, what)?;
+        let mut v = vec![[0i16; N]; n / (2 * N)];
+        self.fill(bytemuck::cast_slice_mut(&mut v), what)?;
+        if cfg!(target_endian = "big") {
+            v.iter_mut().flatten().for_each(|x| *x = i16::from_le(*x));
+        }
+        Ok(v)
+    }
 
     fn u8(&mut self, what: &str) -> std::result::Result<u8, String> {
         let mut b = [0u8; 1];
@@ -525,14 +534,6 @@ impl Input for Reader<'_> {
         buf.copy_from_slice(self.take(buf.len(), what)?);
         Ok(())
     }
-    fn i16_arrays<const N: usize>(
-        &mut self,
-        expected: u64,
-        what: &str,
-    ) -> std::result::Result<Vec<[i16; N]>, String> {
-        let n = self.count(expected, 2 * N, what)?;
-        Ok(decode_i16_arrays(self.take(n, what)?))
-    }
 }
 
 /// The payload streamed from the file, hashed as it is read. Its arrays are read
@@ -560,30 +561,10 @@ impl<R: std::io::Read> Input for FileInput<R> {
         self.remaining -= buf.len() as u64;
         Ok(())
     }
-    fn i16_arrays<const N: usize>(
-        &mut self,
-        expected: u64,
-        what: &str,
-    ) -> std::result::Result<Vec<[i16; N]>, String> {
-        let n = self.count(expected, 2 * N, what)?;
-        let mut v = vec![[0i16; N]; n / (2 * N)];
-        self.fill(bytemuck::cast_slice_mut(&mut v), what)?;
-        if cfg!(target_endian = "big") {
-            v.iter_mut().flatten().for_each(|x| *x = i16::from_le(*x));
-        }
-        Ok(v)
-    }
 }
 
 fn i16_at(b: &[u8], i: usize) -> i16 {
     i16::from_le_bytes([b[2 * i], b[2 * i + 1]])
-}
-
-fn decode_i16_arrays<const N: usize>(bytes: &[u8]) -> Vec<[i16; N]> {
-    bytes
-        .chunks_exact(2 * N)
-        .map(|c| std::array::from_fn(|i| i16_at(c, i)))
-        .collect()
 }
 
 fn decode_payload(r: &mut impl Input) -> std::result::Result<Analysis, String> {
