@@ -19,6 +19,7 @@ use std::sync::Arc;
 
 use crate::analysis::{self, Analysis, AnalysisOptions, Exemplar, Progress};
 use crate::error::{Error, Result};
+use crate::gpu::copy_guard::DEFAULT_COPY_BUDGET;
 use crate::gpu::synth::{GpuSynthesis, GpuSynthesizer};
 use crate::gpu::GpuContext;
 use crate::passes::{SynthParams, Synthesis};
@@ -37,6 +38,7 @@ pub struct SessionBuilder {
     params: SynthParams,
     context: Option<GpuContext>,
     progress: Option<Box<dyn FnMut(Progress)>>,
+    copy_budget: f32,
 }
 
 /// An analysed exemplar on a GPU, ready to synthesize.
@@ -44,6 +46,7 @@ pub struct Session {
     context: GpuContext,
     synthesizer: Arc<GpuSynthesizer>,
     params: SynthParams,
+    copy_budget: f32,
 }
 
 impl Session {
@@ -56,6 +59,7 @@ impl Session {
             params: SynthParams::default(),
             context: None,
             progress: None,
+            copy_budget: DEFAULT_COPY_BUDGET,
         }
     }
 
@@ -64,9 +68,18 @@ impl Session {
         self.run_with(&self.params)
     }
 
-    /// Synthesizes with other parameters (size, window, seed, ...), same exemplar.
+    /// Synthesizes with other parameters (size, window, seed, ...), same exemplar. The
+    /// jitter schedule goes through the copy guard ([`Self::schedule`]).
     pub fn run_with(&self, params: &SynthParams) -> Result<Texture> {
-        let s = self.synthesizer.synthesize_to_host(&self.context, params)?;
+        let choice = self
+            .synthesizer
+            .choose_schedule(&self.context, params, self.copy_budget)?;
+        let s = match choice.result {
+            Some(s) => s,
+            None => self
+                .synthesizer
+                .synthesize_to_host(&self.context, &choice.params)?,
+        };
         Ok(Texture {
             synthesis: s,
             channels: self.analysis().channels,
@@ -75,13 +88,35 @@ impl Session {
         })
     }
 
-    /// Synthesizes into a new GPU texture (`Rgba8Unorm`); nothing is read back.
+    /// Synthesizes into a new GPU texture (`Rgba8Unorm`); only the copy guard's probe
+    /// (if any, see [`Self::schedule`]) is read back.
     pub fn run_gpu(&self) -> Result<GpuSynthesis> {
-        self.synthesizer.synthesize(&self.context, &self.params)
+        let params = self.schedule(&self.params)?;
+        self.synthesizer.synthesize(&self.context, &params)
     }
 
-    /// Records a synthesis into the caller's command encoder (for embedding in a
-    /// frame); the texture is ready once the caller submits the encoder.
+    /// `params` with the jitter schedule the copy guard chooses for them
+    /// ([`GpuSynthesizer::choose_schedule`] with the session's budget): one more still
+    /// level where a probe synthesis copies at most that much of the exemplar. It
+    /// synthesizes the probe and waits for it; the choice depends on the exemplar, the
+    /// seed and the parameters but not on the window, so call it once and [`Self::encode`]
+    /// with the result as often as needed.
+    pub fn schedule(&self, params: &SynthParams) -> Result<SynthParams> {
+        Ok(self
+            .synthesizer
+            .choose_schedule(&self.context, params, self.copy_budget)?
+            .params)
+    }
+
+    /// The copy guard's budget (see [`SessionBuilder::copy_budget`]).
+    pub fn copy_budget(&self) -> f32 {
+        self.copy_budget
+    }
+
+    /// Records a synthesis with `params` as they are into the caller's command encoder
+    /// (for embedding in a frame; no copy guard: pass [`Self::schedule`]'s parameters for
+    /// the same texture as [`Self::run_gpu`]); the texture is ready once the caller
+    /// submits the encoder.
     pub fn encode(
         &self,
         encoder: &mut wgpu::CommandEncoder,
@@ -257,6 +292,14 @@ impl SessionBuilder {
         self
     }
 
+    /// The copy guard's budget, 0..=1 (default [`DEFAULT_COPY_BUDGET`], 0 = no guard,
+    /// the default schedule always): the largest verbatim copy, as a fraction of the
+    /// exemplar, that one more still level may make (see [`crate::gpu::copy_guard`]).
+    pub fn copy_budget(mut self, budget: f32) -> Self {
+        self.copy_budget = budget;
+        self
+    }
+
     /// Loads and analyses the exemplar (unless given an analysis), creates or takes the
     /// GPU context, checks the parameters and uploads the tables.
     pub fn build(self) -> Result<Session> {
@@ -293,6 +336,12 @@ impl SessionBuilder {
             }
         };
         // Validate the parameters before uploading.
+        if !self.copy_budget.is_finite() || !(0.0..=1.0).contains(&self.copy_budget) {
+            return Err(Error::InvalidParameter(format!(
+                "copy budget {} must be between 0 and 1",
+                self.copy_budget
+            )));
+        }
         analysis.validate()?;
         crate::passes::SynthPlan::new(&analysis, &self.params)?;
         let synthesizer = Arc::new(GpuSynthesizer::new(&context, Arc::new(analysis))?);
@@ -304,6 +353,7 @@ impl SessionBuilder {
             context,
             synthesizer,
             params: self.params,
+            copy_budget: self.copy_budget,
         })
     }
 }

@@ -54,6 +54,16 @@ pub struct SynthArgs {
     #[arg(long, value_name = "R|R0,R1,...", value_parser = parse_randomness)]
     pub randomness: Option<Randomness>,
 
+    /// Copy guard: with the default schedule, first synthesize a probe (the 512x512
+    /// window at the origin, with these options) with one more still level, and keep
+    /// that schedule if its largest verbatim copy is at most F of the exemplar's area
+    /// (0..=1; 0 = the default schedule, no probe). Lower texture energy for most
+    /// exemplars; costs one more synthesis when the output is another window or the probe
+    /// copies too much. Isometric synthesis only (ignored with --field or --randomness)
+    #[arg(long, value_name = "F", default_value_t = texsyn::gpu::copy_guard::DEFAULT_COPY_BUDGET,
+          value_parser = parse_copy_budget)]
+    pub copy_budget: f32,
+
     /// Correction passes on every level but the finest (0..=16; each is 4 subpasses)
     #[arg(long, value_name = "P", default_value_t = SynthParams::default().passes,
           value_parser = clap::value_parser!(u32).range(0..=16))]
@@ -157,6 +167,15 @@ pub struct AlsoMap {
     pub normal: bool,
     /// A normal map with green = y down (DirectX), `normal-dx:`.
     pub green_down: bool,
+}
+
+fn parse_copy_budget(s: &str) -> Result<f32, String> {
+    match s.parse::<f32>() {
+        Ok(f) if (0.0..=1.0).contains(&f) => Ok(f),
+        _ => Err(format!(
+            "'{s}': give a fraction of the exemplar's area between 0 and 1 (0 turns the copy guard off)"
+        )),
+    }
 }
 
 pub fn parse_magnify(s: &str) -> Result<u32, String> {
@@ -535,6 +554,7 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
         origin: args.window,
         seed: args.seed,
         randomness: args.randomness.clone().map(|r| r.0).unwrap_or_default(),
+        extra_still_levels: 0,
         passes: args.passes,
         finest_passes: args.finest_passes,
         sets_every: args.sets_every,
@@ -561,6 +581,15 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
         synthesizer.prepare(&ctx, &params)?;
     }
     let pipeline_time = t.elapsed();
+    // The copy guard's probe (its synthesis is the result when it is the output's).
+    let t = Instant::now();
+    let choice = synthesizer
+        .choose_schedule(&ctx, &params, args.copy_budget)
+        .map_err(cli_hint(args.tileable_output))?;
+    let guard_time = choice.probe_copy.map(|_| t.elapsed());
+    let params = choice.params.clone();
+    let mut probe_result = choice.result.clone();
+    let mut reused_probe = false;
     // Outputs of several megapixels take seconds (minutes on a CPU device): report each
     // level, at most once a second (each window, when in windows). Smaller ones keep
     // their single submission.
@@ -662,9 +691,15 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
                 (coords, width, height, s.colors, map_pixels)
             }
             None => {
-                let (s, map_pixels) = synthesizer
-                    .synthesize_with_maps(&ctx, &params, &maps)
-                    .map_err(cli_hint(args.tileable_output))?;
+                let (s, map_pixels) = match probe_result.take() {
+                    Some(s) if maps.is_empty() => {
+                        reused_probe = true;
+                        (s, Vec::new())
+                    }
+                    _ => synthesizer
+                        .synthesize_with_maps(&ctx, &params, &maps)
+                        .map_err(cli_hint(args.tileable_output))?,
+                };
                 (s.coords_f32(), width, height, s.colors, map_pixels)
             }
         };
@@ -698,6 +733,12 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
             synth_readback,
             write: t.elapsed(),
         };
+    } else if let Some(s) = probe_result.take() {
+        // The probe was this very synthesis (colours already on the host).
+        let t = Instant::now();
+        let rgba8: Vec<u8> = s.colors.iter().flatten().copied().collect();
+        texsyn::image_io::save_image_atomic(&args.output, width, height, channels, &rgba8)?;
+        timings = Timings::Probe { write: t.elapsed() };
     } else {
         let t = Instant::now();
         let gpu = synthesizer
@@ -735,6 +776,9 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
         out_size.1,
         args.seed,
     ));
+    if choice.probe_copy.is_some() {
+        ui.info(choice.describe(args.copy_budget));
+    }
     if let Some(c) = &args.coords_out {
         ui.info(format!("coordinates: {}", c.display()));
     }
@@ -767,6 +811,12 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
         fmt_duration(upload_time),
         fmt_duration(pipeline_time)
     ));
+    if let Some(g) = guard_time {
+        ui.info(format!(
+            "      copy guard probe (synthesis + read-back) {}",
+            fmt_duration(g)
+        ));
+    }
     match timings {
         Timings::Separate {
             synth,
@@ -788,10 +838,18 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
             synth_readback,
             write,
         } => {
-            ui.info(format!(
-                "      synthesis + read-back of colours and coordinates {}",
-                fmt_duration(synth_readback)
-            ));
+            if reused_probe {
+                ui.info("      synthesis: the copy guard's probe");
+            } else {
+                ui.info(format!(
+                    "      synthesis + read-back of colours and coordinates {}",
+                    fmt_duration(synth_readback)
+                ));
+            }
+            ui.info(format!("      write {}", fmt_duration(write)));
+        }
+        Timings::Probe { write } => {
+            ui.info("      synthesis: the copy guard's probe");
             ui.info(format!("      write {}", fmt_duration(write)));
         }
     }
@@ -808,6 +866,8 @@ enum Timings {
         synth_readback: Duration,
         write: Duration,
     },
+    /// The copy guard's probe was the result: only the write is left.
+    Probe { write: Duration },
 }
 
 /// Rejects an output extension the library cannot write, before any work (the library

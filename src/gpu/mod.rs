@@ -1,8 +1,10 @@
 //! GPU side: device creation ([`context`]), the generated shader constants
-//! ([`shaders`]) and synthesis on the GPU ([`synth`]).
+//! ([`shaders`]), synthesis on the GPU ([`synth`]) and the choice of its jitter schedule
+//! ([`copy_guard`]).
 
 pub mod advect;
 pub mod context;
+pub mod copy_guard;
 pub mod shaders;
 pub mod synth;
 

@@ -28,6 +28,12 @@ pub struct SynthParams {
     /// Per-level jitter randomness `r_l` (fraction of `h_l`), index = level. Missing
     /// levels use the last value; an empty list uses [`default_randomness`].
     pub randomness: Vec<f32>,
+    /// Levels added to the default schedule's still (unjittered) finest ones, 0..=4;
+    /// ignored when `randomness` is given. Larger patches, lower texture energy, larger
+    /// verbatim copies: [`crate::gpu::synth::GpuSynthesizer::choose_schedule`] sets it to
+    /// 1 where a probe synthesis stays within a copy budget (the CLI's and
+    /// [`crate::Session`]'s default). Default 0.
+    pub extra_still_levels: u32,
     /// Correction passes (each = 4 subpasses) at every level but the finest.
     pub passes: u32,
     /// Correction passes at the finest level (3/4 of all pixels, so the costly one).
@@ -133,6 +139,7 @@ impl Default for SynthParams {
             origin: [0, 0],
             seed: 1,
             randomness: Vec::new(),
+            extra_still_levels: 0,
             passes: 4,
             finest_passes: 0,
             sets_every: 1,
@@ -177,7 +184,15 @@ impl Default for SynthParams {
 /// - 176..288: 0 on the three finest levels, 0.25 on the fourth, 1 above;
 /// - 288..448: 0 on the four finest, 0.25 on the fifth, 1 above;
 /// - 448 and up: 0 on the five finest, 0.75 on the sixth, 1 above.
-pub fn default_randomness(level: u32, finest: u32, exemplar_min_side: u32) -> f32 {
+///
+/// `extra_still` levels more are still (the partly jittered level moves up with them):
+/// what [`SynthParams::extra_still_levels`] asks for.
+pub fn default_randomness(
+    level: u32,
+    finest: u32,
+    exemplar_min_side: u32,
+    extra_still: u32,
+) -> f32 {
     let from_finest = finest.saturating_sub(level);
     let (still, partial) = match exemplar_min_side {
         0..80 => (1, None),
@@ -187,6 +202,8 @@ pub fn default_randomness(level: u32, finest: u32, exemplar_min_side: u32) -> f3
         288..448 => (4, Some((4, 0.25))),
         _ => (5, Some((5, 0.75))),
     };
+    let still = still + extra_still;
+    let partial = partial.map(|(l, r)| (l + extra_still, r));
     match partial {
         _ if from_finest < still => 0.0,
         Some((l, r)) if l == from_finest => r,
@@ -263,6 +280,12 @@ impl SynthPlan {
                     analysis.levels.len()
                 )));
             }
+        }
+        if params.extra_still_levels > 4 {
+            return Err(Error::InvalidParameter(format!(
+                "{} extra still levels: at most 4",
+                params.extra_still_levels
+            )));
         }
         for &r in &params.randomness {
             if !r.is_finite() || !(0.0..=2.0).contains(&r) {
@@ -367,7 +390,12 @@ impl SynthPlan {
         for (level, rlo, rhi, margin) in rev {
             let size = [(rhi[0] - rlo[0]) as u32, (rhi[1] - rlo[1]) as u32];
             let randomness = if params.randomness.is_empty() {
-                default_randomness(level, last, analysis.width.min(analysis.height))
+                default_randomness(
+                    level,
+                    last,
+                    analysis.width.min(analysis.height),
+                    params.extra_still_levels,
+                )
             } else {
                 let i = (level as usize).min(params.randomness.len() - 1);
                 params.randomness[i]
@@ -898,11 +926,11 @@ mod tests {
     use super::default_randomness;
 
     /// The schedule, finest level first, for an exemplar of the given smaller side.
-    fn schedule(side: u32) -> Vec<f32> {
+    fn schedule(side: u32, extra: u32) -> Vec<f32> {
         let finest = 32 - (side - 1).leading_zeros();
         (0..=finest)
             .rev()
-            .map(|l| default_randomness(l, finest, side))
+            .map(|l| default_randomness(l, finest, side, extra))
             .collect()
     }
 
@@ -923,10 +951,13 @@ mod tests {
             (448, 5, 0.75),
             (4096, 5, 0.75),
         ] {
-            let s = schedule(side);
-            assert!(s[..still].iter().all(|&r| r == 0.0), "{side}: {s:?}");
-            assert_eq!(s[still], partial, "{side}: {s:?}");
-            assert!(s[still + 1..].iter().all(|&r| r == 1.0), "{side}: {s:?}");
+            for extra in 0..2 {
+                let s = schedule(side, extra);
+                let still = still + extra as usize;
+                assert!(s[..still].iter().all(|&r| r == 0.0), "{side}: {s:?}");
+                assert_eq!(s[still], partial, "{side}: {s:?}");
+                assert!(s[still + 1..].iter().all(|&r| r == 1.0), "{side}: {s:?}");
+            }
         }
     }
 }
