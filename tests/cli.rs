@@ -480,6 +480,9 @@ fn bad_inputs_fail_cleanly() {
     synth(GRAVEL, &["--size", "4x4x4"], 2, "expected N or NxM");
     synth(GRAVEL, &["--randomness", "2.5"], 2, "between 0 and 2");
     synth(GRAVEL, &["--randomness", "nan"], 2, "between 0 and 2");
+    synth(GRAVEL, &["--copy-budget", "1.5"], 2, "between 0 and 1");
+    synth(GRAVEL, &["--copy-budget", "-0.1"], 2, "between 0 and 1");
+    synth(GRAVEL, &["--copy-budget", "nan"], 2, "between 0 and 1");
     synth(GRAVEL, &["--seed", "4294967296"], 2, "--seed");
     synth(GRAVEL, &["--seed", "x"], 2, "--seed");
     // A negative seed names the range instead of being taken for an unknown flag.

@@ -1,26 +1,26 @@
-//! The copy guard (`gpu::copy_guard`): the stiller schedule is kept exactly when its probe
-//! copies at most the budget, the probe is the result when it is the output's window,
-//! the choice does not depend on the window, and the guard stays out of the way where
-//! it does not apply.
+//! The copy guard (`gpu::copy_guard`): the stillest schedule whose probe copies at most
+//! the budget is kept, the probe is the result when it is the output's window, the
+//! choice does not depend on the window, and the guard stays out of the way where it
+//! does not apply.
 
 use std::sync::Arc;
 
-use texsyn::gpu::copy_guard::COPY_PROBE_SIZE;
+use texsyn::gpu::copy_guard::{COPY_PROBE_SIZE, GUARD_MIN_SIDE, GUARD_TIERS};
 use texsyn::quality::verbatim_stats;
 use texsyn::{Analysis, AnalysisOptions, GpuContext, GpuSynthesizer, Session, SynthParams};
 
-fn gravel_analysis() -> Analysis {
-    let ex = texsyn::image_io::load_exemplar(
-        concat!(env!("CARGO_MANIFEST_DIR"), "/assets/gravel.png").as_ref(),
-    )
-    .unwrap();
+/// The bundled gravel (128 px) enlarged to `side`, analysed.
+fn gravel_analysis(side: u32) -> Analysis {
+    let img = image::open(concat!(env!("CARGO_MANIFEST_DIR"), "/assets/gravel.png")).unwrap();
+    let img = img.resize_exact(side, side, image::imageops::FilterType::Triangle);
+    let ex = texsyn::image_io::exemplar_from_image(&img).unwrap();
     texsyn::analysis::analyze(&ex, &AnalysisOptions::default(), |_| {}).unwrap()
 }
 
 #[test]
-fn the_guard_keeps_the_stiller_schedule_only_within_its_budget() {
+fn the_guard_keeps_the_stillest_schedule_within_its_budget() {
     let ctx = GpuContext::headless().expect("a device");
-    let syn = GpuSynthesizer::new(&ctx, Arc::new(gravel_analysis())).unwrap();
+    let syn = GpuSynthesizer::new(&ctx, Arc::new(gravel_analysis(GUARD_MIN_SIDE))).unwrap();
     let a = syn.analysis();
     let (ew, eh, tileable) = (a.width, a.height, a.tileable);
     let output = SynthParams {
@@ -29,40 +29,58 @@ fn the_guard_keeps_the_stiller_schedule_only_within_its_budget() {
         seed: 3,
         ..Default::default()
     };
-
-    // The probe's own copy, measured here from an explicit synthesis.
-    let stiller = SynthParams {
-        extra_still_levels: 1,
+    let with_extra = |extra: u32| SynthParams {
+        extra_still_levels: extra,
         ..output.clone()
     };
-    let s = syn.synthesize_to_host(&ctx, &stiller).unwrap();
-    let copy = verbatim_stats(&s.coords, s.width, s.height, ew, eh, tileable)
-        .unwrap()
-        .largest_region_fraction;
+
+    // Each tier's probe, measured here from explicit syntheses.
+    let mut tiers = Vec::new();
+    for extra in GUARD_TIERS {
+        let s = syn.synthesize_to_host(&ctx, &with_extra(extra)).unwrap();
+        let copy = verbatim_stats(&s.coords, s.width, s.height, ew, eh, tileable)
+            .unwrap()
+            .largest_region_fraction;
+        tiers.push((extra, copy, s));
+    }
     let plain = syn.synthesize_to_host(&ctx, &output).unwrap();
-    assert_ne!(
-        s.coords, plain.coords,
-        "one more still level changes the texture"
-    );
+    assert_ne!(tiers[0].2.coords, plain.coords);
+    assert_ne!(tiers[1].2.coords, plain.coords);
 
-    // A budget just above the copy keeps it, and the probe is the result.
-    let keep = syn
-        .choose_schedule(&ctx, &output, (copy as f32 + 1e-4).min(1.0))
-        .unwrap();
-    assert_eq!(keep.params, stiller);
-    assert_eq!(keep.probe_copy, Some(copy));
-    let r = keep.result.expect("the probe is the output's window");
-    assert_eq!((r.coords, r.colors), (s.coords.clone(), s.colors.clone()));
+    // Budgets at, just under and above each probe's copy: the first tier within the
+    // budget is kept (its probe is the result), the default if none is.
+    let mut budgets = vec![1.0f32];
+    for (_, c, _) in &tiers {
+        budgets.push(*c as f32);
+        budgets.push(*c as f32 * 0.999);
+    }
+    for b in budgets {
+        let choice = syn.choose_schedule(&ctx, &output, b).unwrap();
+        let kept = tiers.iter().position(|(_, c, _)| *c <= b as f64);
+        let probed = kept.map_or(tiers.len(), |i| i + 1);
+        assert_eq!(
+            choice.probes,
+            tiers[..probed]
+                .iter()
+                .map(|(e, c, _)| (*e, *c))
+                .collect::<Vec<_>>(),
+            "budget {b}"
+        );
+        match kept {
+            Some(i) => {
+                assert_eq!(choice.params, with_extra(tiers[i].0), "budget {b}");
+                let r = choice.result.expect("the probe is the output's window");
+                assert_eq!(r.coords, tiers[i].2.coords);
+                assert_eq!(r.colors, tiers[i].2.colors);
+            }
+            None => {
+                assert_eq!(choice.params, output, "budget {b}");
+                assert!(choice.result.is_none());
+            }
+        }
+    }
 
-    // Just below: the default schedule, nothing to reuse.
-    let drop = syn
-        .choose_schedule(&ctx, &output, copy as f32 * 0.999)
-        .unwrap();
-    assert_eq!(drop.params, output);
-    assert_eq!(drop.probe_copy, Some(copy));
-    assert!(drop.result.is_none());
-
-    // Another window, same seed: same decision (the probe is the origin's window),
+    // Another window, same seed: the same decision (the probe is the origin's window),
     // so windows still fit together; the result is synthesized apart.
     let window = SynthParams {
         width: 40,
@@ -71,8 +89,8 @@ fn the_guard_keeps_the_stiller_schedule_only_within_its_budget() {
         ..output.clone()
     };
     let w = syn.choose_schedule(&ctx, &window, 1.0).unwrap();
-    assert_eq!(w.params.extra_still_levels, 1);
-    assert_eq!(w.probe_copy, Some(copy));
+    assert_eq!(w.params.extra_still_levels, GUARD_TIERS[0]);
+    assert_eq!(w.probes, vec![(tiers[0].0, tiers[0].1)]);
     assert!(w.result.is_none());
     let piece = syn.synthesize_to_host(&ctx, &w.params).unwrap();
     let whole = syn
@@ -82,7 +100,7 @@ fn the_guard_keeps_the_stiller_schedule_only_within_its_budget() {
                 width: 400,
                 height: 24,
                 origin: [0, -70],
-                ..stiller.clone()
+                ..with_extra(GUARD_TIERS[0])
             },
         )
         .unwrap();
@@ -106,13 +124,13 @@ fn the_guard_keeps_the_stiller_schedule_only_within_its_budget() {
             }),
             ..output.clone()
         },
-        stiller.clone(),
+        with_extra(1),
     ] {
         let c = syn.choose_schedule(&ctx, &p, 1.0).unwrap();
-        assert_eq!((c.params, c.probe_copy.is_none()), (p, true));
+        assert_eq!((c.params, c.probes.is_empty()), (p, true));
     }
     let off = syn.choose_schedule(&ctx, &output, 0.0).unwrap();
-    assert_eq!((off.params, off.probe_copy), (output.clone(), None));
+    assert_eq!((off.params, off.probes.is_empty()), (output.clone(), true));
 
     // Bad budgets and bad parameters are errors, not panics.
     for b in [-0.1, 1.5, f32::NAN] {
@@ -127,9 +145,8 @@ fn the_guard_keeps_the_stiller_schedule_only_within_its_budget() {
 }
 
 #[test]
-fn a_session_applies_its_budget() {
-    let analysis = gravel_analysis();
-    let build = |budget: f32| {
+fn a_session_applies_its_budget_to_large_exemplars_only() {
+    let build = |analysis: &Analysis, budget: f32| {
         Session::builder()
             .analysis(analysis.clone())
             .size(96, 64)
@@ -138,10 +155,14 @@ fn a_session_applies_its_budget() {
             .build()
             .unwrap()
     };
-    let (open, off) = (build(1.0), build(0.0));
+    let large = gravel_analysis(GUARD_MIN_SIDE);
+    let (open, off) = (build(&large, 1.0), build(&large, 0.0));
     assert_eq!(open.copy_budget(), 1.0);
     let params = open.params().clone();
-    assert_eq!(open.schedule(&params).unwrap().extra_still_levels, 1);
+    assert_eq!(
+        open.schedule(&params).unwrap().extra_still_levels,
+        GUARD_TIERS[0]
+    );
     assert_eq!(off.schedule(&params).unwrap(), params);
     let direct = |extra: u32| {
         open.synthesizer()
@@ -155,10 +176,16 @@ fn a_session_applies_its_budget() {
             .unwrap()
             .coords
     };
-    assert_eq!(open.run().unwrap().coords(), &direct(1)[..]);
+    assert_eq!(open.run().unwrap().coords(), &direct(GUARD_TIERS[0])[..]);
     assert_eq!(off.run().unwrap().coords(), &direct(0)[..]);
+
+    // Under GUARD_MIN_SIDE the default schedule stays, whatever the budget.
+    let small = gravel_analysis(GUARD_MIN_SIDE - 1);
+    let s = build(&small, 1.0);
+    assert_eq!(s.schedule(s.params()).unwrap(), *s.params());
+
     assert!(Session::builder()
-        .analysis(analysis)
+        .analysis(large)
         .copy_budget(f32::NAN)
         .build()
         .is_err());

@@ -54,12 +54,13 @@ pub struct SynthArgs {
     #[arg(long, value_name = "R|R0,R1,...", value_parser = parse_randomness)]
     pub randomness: Option<Randomness>,
 
-    /// Copy guard: with the default schedule, first synthesize a probe (the 512x512
-    /// window at the origin, with these options) with one more still level, and keep
-    /// that schedule if its largest verbatim copy is at most F of the exemplar's area
+    /// Copy guard, for exemplars of 176 px and more: first synthesize probes (the 512x512
+    /// window at the origin, with these options) with two more still levels, then one,
+    /// and keep the first whose largest verbatim copy is at most F of the exemplar's area
     /// (0..=1; 0 = the default schedule, no probe). Lower texture energy for most
-    /// exemplars; costs one more synthesis when the output is another window or the probe
-    /// copies too much. Isometric synthesis only (ignored with --field or --randomness)
+    /// exemplars; costs one synthesis per probe, plus the result's when it is another
+    /// window or every probe copies too much. Isometric synthesis only (ignored with
+    /// --field or --randomness)
     #[arg(long, value_name = "F", default_value_t = texsyn::gpu::copy_guard::DEFAULT_COPY_BUDGET,
           value_parser = parse_copy_budget)]
     pub copy_budget: f32,
@@ -586,7 +587,7 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
     let choice = synthesizer
         .choose_schedule(&ctx, &params, args.copy_budget)
         .map_err(cli_hint(args.tileable_output))?;
-    let guard_time = choice.probe_copy.map(|_| t.elapsed());
+    let guard_time = (!choice.probes.is_empty()).then(|| t.elapsed());
     let params = choice.params.clone();
     let mut probe_result = choice.result.clone();
     let mut reused_probe = false;
@@ -776,7 +777,7 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
         out_size.1,
         args.seed,
     ));
-    if choice.probe_copy.is_some() {
+    if !choice.probes.is_empty() {
         ui.info(choice.describe(args.copy_budget));
     }
     if let Some(c) = &args.coords_out {
@@ -813,7 +814,7 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
     ));
     if let Some(g) = guard_time {
         ui.info(format!(
-            "      copy guard probe (synthesis + read-back) {}",
+            "      copy guard probes (synthesis + read-back) {}",
             fmt_duration(g)
         ));
     }

@@ -31,7 +31,7 @@ pub struct SynthParams {
     /// Levels added to the default schedule's still (unjittered) finest ones, 0..=4;
     /// ignored when `randomness` is given. Larger patches, lower texture energy, larger
     /// verbatim copies: [`crate::gpu::synth::GpuSynthesizer::choose_schedule`] sets it to
-    /// 1 where a probe synthesis stays within a copy budget (the CLI's and
+    /// 1 or 2 where a probe synthesis stays within a copy budget (the CLI's and
     /// [`crate::Session`]'s default). Default 0.
     pub extra_still_levels: u32,
     /// Correction passes (each = 4 subpasses) at every level but the finest.
