@@ -96,9 +96,9 @@ impl Session {
     }
 
     /// `params` with the jitter schedule the copy guard chooses for them
-    /// ([`GpuSynthesizer::choose_schedule`] with the session's budget): one more still
-    /// level where a probe synthesis copies at most that much of the exemplar. It
-    /// synthesizes the probe and waits for it; the choice depends on the exemplar, the
+    /// ([`GpuSynthesizer::choose_schedule`] with the session's budget): from 176 px, two
+    /// or one more still levels where a probe synthesis copies at most that much of the
+    /// exemplar. It synthesizes the probes and waits for them; the choice depends on the exemplar, the
     /// seed and the parameters but not on the window, so call it once and [`Self::encode`]
     /// with the result as often as needed.
     pub fn schedule(&self, params: &SynthParams) -> Result<SynthParams> {
@@ -294,7 +294,7 @@ impl SessionBuilder {
 
     /// The copy guard's budget, 0..=1 (default [`DEFAULT_COPY_BUDGET`], 0 = no guard,
     /// the default schedule always): the largest verbatim copy, as a fraction of the
-    /// exemplar, that one more still level may make (see [`crate::gpu::copy_guard`]).
+    /// exemplar, that a stiller schedule may make (see [`crate::gpu::copy_guard`]).
     pub fn copy_budget(mut self, budget: f32) -> Self {
         self.copy_budget = budget;
         self

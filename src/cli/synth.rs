@@ -62,7 +62,7 @@ pub struct SynthArgs {
     /// window or every probe copies too much. Isometric synthesis only (ignored with
     /// --field or --randomness)
     #[arg(long, value_name = "F", default_value_t = texsyn::gpu::copy_guard::DEFAULT_COPY_BUDGET,
-          value_parser = parse_copy_budget)]
+          allow_hyphen_values = true, value_parser = parse_copy_budget)]
     pub copy_budget: f32,
 
     /// Correction passes on every level but the finest (0..=16; each is 4 subpasses)
