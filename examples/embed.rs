@@ -42,6 +42,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         seed: 3,
         ..SynthParams::default()
     };
+    // The copy guard's jitter schedule (a no-op for this 128 px exemplar; from 176 px it
+    // synthesizes probes and waits): once, not per frame.
+    let params = session.schedule(&params)?;
     let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
         label: Some("host frame"),
     });
