@@ -588,8 +588,9 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
         .choose_schedule(&ctx, &params, args.copy_budget)
         .map_err(cli_hint(args.tileable_output))?;
     let guard_time = (!choice.probes.is_empty()).then(|| t.elapsed());
-    let params = choice.params.clone();
-    let mut probe_result = choice.result.clone();
+    let guard_line = (!choice.probes.is_empty()).then(|| choice.describe(args.copy_budget));
+    let params = choice.params;
+    let mut probe_result = choice.result;
     let mut reused_probe = false;
     // Outputs of several megapixels take seconds (minutes on a CPU device): report each
     // level, at most once a second (each window, when in windows). Smaller ones keep
@@ -777,8 +778,8 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
         out_size.1,
         args.seed,
     ));
-    if !choice.probes.is_empty() {
-        ui.info(choice.describe(args.copy_budget));
+    if let Some(line) = guard_line {
+        ui.info(line);
     }
     if let Some(c) = &args.coords_out {
         ui.info(format!("coordinates: {}", c.display()));

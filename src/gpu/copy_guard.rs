@@ -1,4 +1,4 @@
-//! The copy guard: one more still level where it does not copy too much.
+//! The copy guard: more still levels where they do not copy too much.
 //!
 //! The default jitter schedule ([`crate::passes::plan::default_randomness`]) is set so
 //! that no exemplar, regular or not, copies more than about a fifth of itself verbatim.
