@@ -28,7 +28,8 @@
 //!     8 x 32 i16 proj                       row-major
 //!     u64 n_et,      n_et x 8 i16           (n_et == width*height)
 //!     u64 n_qe,      n_qe x 8 i16           (n_qe == width*height)
-//!     u64 n_offsets, n_offsets x 2 i16      (n_offsets == width*height*(k-1))
+//!     u64 n_offsets, n_offsets x 2 i16      (n_offsets == width*height*(k-1); 0 allowed on
+//!                                           the finest level: its sets left out)
 //! u8  appearance space                      (0 = neighborhood, 1 = color)
 //! u8  feature mask used: 0 none, 1 in the appearance vectors, 2 in the similarity sets
 //!     only (FeatureMode::Sets; older texsyn builds refuse 2 with a clear error)
@@ -454,7 +455,17 @@ trait Input {
         expected: u64,
         what: &str,
     ) -> std::result::Result<Vec<[i16; N]>, String> {
-        let n = self.count(expected, 2 * N, what)?;
+        self.i16_arrays_or_none(expected, false, what)
+    }
+
+    /// [`Self::i16_arrays`], also taking an empty table where `may_be_empty`.
+    fn i16_arrays_or_none<const N: usize>(
+        &mut self,
+        expected: u64,
+        may_be_empty: bool,
+        what: &str,
+    ) -> std::result::Result<Vec<[i16; N]>, String> {
+        let n = self.count(expected, may_be_empty, 2 * N, what)?;
         let mut v = vec![[0i16; N]; n / (2 * N)];
         self.fill(bytemuck::cast_slice_mut(&mut v), what)?;
         if cfg!(target_endian = "big") {
@@ -487,11 +498,12 @@ trait Input {
     fn count(
         &mut self,
         expected: u64,
+        may_be_empty: bool,
         elem_size: usize,
         what: &str,
     ) -> std::result::Result<usize, String> {
         let n = self.u64(what)?;
-        if n != expected {
+        if n != expected && !(may_be_empty && n == 0) {
             return Err(format!("{what} has {n} entries, expected {expected}"));
         }
         n.checked_mul(elem_size as u64)
@@ -590,7 +602,7 @@ fn decode_payload(r: &mut impl Input) -> std::result::Result<Analysis, String> {
     }
     let pixels = width as u64 * height as u64;
 
-    let n = r.count(pixels, 4, "colors")?;
+    let n = r.count(pixels, false, 4, "colors")?;
     let mut colors = vec![[0u8; 4]; n / 4];
     r.fill(colors.as_flattened_mut(), "colors")?;
 
@@ -638,7 +650,9 @@ fn decode_payload(r: &mut impl Input) -> std::result::Result<Analysis, String> {
         let et = r.i16_arrays::<DIM>(pixels, &lw("et"))?;
         let qe = r.i16_arrays::<DIM>(pixels, &lw("qe"))?;
         let n_offsets = pixels * (k as u64 - 1);
-        let offsets = r.i16_arrays::<2>(n_offsets, &lw("offsets"))?;
+        // The finest level's sets may be left out (AnalysisOptions::finest_sets).
+        let finest = l + 1 == n_levels;
+        let offsets = r.i16_arrays_or_none::<2>(n_offsets, finest, &lw("offsets"))?;
 
         levels.push(LevelData {
             spacing,
@@ -768,12 +782,14 @@ impl Analysis {
                 return bad(format!("level {l} shift is {}, expected < 32", level.shift));
             }
             let offsets = pixels * (self.k as usize - 1);
+            // The finest level's sets may be left out (AnalysisOptions::finest_sets).
+            let finest = l + 1 == self.levels.len();
             for (name, len, expected) in [
                 ("et", level.et.len(), pixels),
                 ("qe", level.qe.len(), pixels),
                 ("offsets", level.offsets.len(), offsets),
             ] {
-                if len != expected {
+                if len != expected && !(finest && name == "offsets" && len == 0) {
                     return bad(format!(
                         "level {l} {name} has {len} entries, expected {expected}"
                     ));

@@ -217,6 +217,16 @@ pub fn similarity_offsets(
     let feature = |p: usize| &q.features[p * q.dim..(p + 1) * q.dim];
     let seed = q.width ^ q.height.rotate_left(16) ^ q.exclusion_radius.rotate_left(8);
 
+    // TEXSYN_PROFILE: when each step ends, for tuning.
+    let (profile, t_start) = (
+        std::env::var_os("TEXSYN_PROFILE").is_some(),
+        std::time::Instant::now(),
+    );
+    let step_done = |what: &str| {
+        if profile {
+            eprintln!("  similarity: {what} done at {:?}", t_start.elapsed());
+        }
+    };
     // Initialization: the coarser level's matches, then random members.
     let mut state: Vec<(f32, u32)> = par_ranges(n, threads, |range| {
         let mut out = Vec::with_capacity(range.len() * want);
@@ -255,6 +265,7 @@ pub fn similarity_offsets(
     } >> q.light as u32;
     let steps = (1 + use_kd as usize + iterations) as f32;
     progress(1.0 / steps);
+    step_done("initialization");
     if use_kd {
         let members: Vec<u32> = (0..n as u32)
             .filter(|&p| {
@@ -267,6 +278,7 @@ pub fn similarity_offsets(
             pts.extend_from_slice(feature(p as usize));
         }
         let tree = KdTree::build(pts, q.dim);
+        step_done("kd-tree build");
         let checks = if q.spacing == 1 {
             KD_CHECKS_FINEST
         } else {
@@ -294,6 +306,7 @@ pub fn similarity_offsets(
         })
         .concat();
         progress(2.0 / steps);
+        step_done("kd-tree search");
     }
 
     let bands = (h as usize).div_ceil(BAND_ROWS);
@@ -387,9 +400,10 @@ pub fn similarity_offsets(
         .concat();
         state = next.concat();
         progress((1 + use_kd as usize + it + 1) as f32 / steps);
+        step_done(&format!("PatchMatch iteration {it}"));
     }
 
-    if std::env::var_os("TEXSYN_PROFILE").is_some() {
+    if profile {
         let mean = state
             .iter()
             .step_by(want)

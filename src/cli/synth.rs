@@ -515,6 +515,10 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
             let mut options = AnalysisOptions {
                 k: args.k.unwrap_or(AnalysisOptions::default().k),
                 tileable: args.tile.get(),
+                // Only a corrected finest level reads its similarity sets, and this
+                // analysis serves this one synthesis: same bytes, a quarter to a third
+                // less analysis time.
+                finest_sets: args.finest_passes > 0,
                 ..AnalysisOptions::default()
             };
             args.appearance.apply(&mut options)?;

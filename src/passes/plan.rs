@@ -257,6 +257,14 @@ impl SynthPlan {
                 params.passes, params.finest_passes
             )));
         }
+        if params.finest_passes > 0 && !analysis.has_finest_sets() {
+            return Err(Error::InvalidParameter(format!(
+                "{} correction pass(es) at the finest level need its similarity sets, which \
+                 this analysis left out (AnalysisOptions::finest_sets = false): analyse the \
+                 exemplar again with them, or keep finest_passes at 0",
+                params.finest_passes
+            )));
+        }
         if !(1..=16).contains(&params.sets_every) {
             return Err(Error::InvalidParameter(format!(
                 "similarity sets every {} passes: must be 1 to 16",

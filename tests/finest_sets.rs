@@ -1,0 +1,175 @@
+//! An analysis without the finest level's similarity sets (`AnalysisOptions::finest_sets
+//! = false`, what `texsyn synth` from an image uses): the same synthesis bytes as the
+//! full analysis wherever the finest level is not corrected, and a clear error wherever
+//! it would be.
+
+mod common;
+
+use std::sync::{Arc, OnceLock};
+
+use texsyn::analysis::{analyze, Analysis, AnalysisOptions};
+use texsyn::field::Field;
+use texsyn::gpu::advect::{AdvectOptions, Advection};
+use texsyn::gpu::{synth::GpuSynthesizer, GpuContext};
+use texsyn::passes::synthesize_cpu;
+use texsyn::{Error, SynthParams};
+
+fn ctx() -> &'static GpuContext {
+    static CTX: OnceLock<GpuContext> = OnceLock::new();
+    CTX.get_or_init(|| {
+        GpuContext::headless().expect("a Vulkan adapter (lavapipe) is required for the tests")
+    })
+}
+
+/// The full and the lean analysis of a 40x40 crop.
+fn analyses(tileable: bool) -> (Arc<Analysis>, Arc<Analysis>) {
+    let ex = common::gravel_crop(40);
+    let opts = AnalysisOptions {
+        tileable: Some(tileable),
+        ..AnalysisOptions::default()
+    };
+    let full = analyze(&ex, &opts, |_| {}).unwrap();
+    let lean = analyze(
+        &ex,
+        &AnalysisOptions {
+            finest_sets: false,
+            ..opts
+        },
+        |_| {},
+    )
+    .unwrap();
+    (Arc::new(full), Arc::new(lean))
+}
+
+#[test]
+fn lean_analysis_differs_only_in_the_finest_sets() {
+    for tileable in [false, true] {
+        let (full, lean) = analyses(tileable);
+        assert!(full.has_finest_sets());
+        assert!(!lean.has_finest_sets());
+        lean.validate().unwrap();
+        let top = full.levels.len() - 1;
+        assert!(lean.levels[top].offsets.is_empty());
+        // The full analysis really searched them (not all the coherent candidate).
+        assert!(full.levels[top].offsets.iter().any(|o| *o != [0, 0]));
+        let mut patched = (*lean).clone();
+        patched.levels[top].offsets = full.levels[top].offsets.clone();
+        assert_eq!(patched, *full, "tileable {tileable}: other tables differ");
+    }
+    // k = 1 has no sets to leave out.
+    let ex = common::gravel_crop(40);
+    let k1 = AnalysisOptions {
+        k: 1,
+        finest_sets: false,
+        ..AnalysisOptions::default()
+    };
+    assert!(analyze(&ex, &k1, |_| {}).unwrap().has_finest_sets());
+}
+
+#[test]
+fn lean_analysis_synthesizes_the_same_bytes() {
+    let rotate = Field::Constant {
+        angle: 0.5,
+        scale: [1.0, 1.0],
+        shear: 0.0,
+    };
+    for tileable in [false, true] {
+        let (full, lean) = analyses(tileable);
+        let gpu_full = GpuSynthesizer::new(ctx(), full.clone()).unwrap();
+        let gpu_lean = GpuSynthesizer::new(ctx(), lean.clone()).unwrap();
+        for field in [None, Some(rotate.clone())] {
+            let params = SynthParams {
+                width: 45,
+                height: 38,
+                origin: [-7, 12],
+                seed: 9,
+                field: field.clone(),
+                ..SynthParams::default()
+            };
+            let a = gpu_full.synthesize_to_host(ctx(), &params).unwrap();
+            let b = gpu_lean.synthesize_to_host(ctx(), &params).unwrap();
+            assert_eq!(
+                a, b,
+                "tileable {tileable}, field {field:?}: GPU outputs differ"
+            );
+            let c = synthesize_cpu(&lean, &params).unwrap();
+            assert_eq!(
+                c, b,
+                "tileable {tileable}, field {field:?}: CPU mirror differs"
+            );
+        }
+    }
+}
+
+#[test]
+fn lean_analysis_refuses_a_corrected_finest_level() {
+    let (full, lean) = analyses(false);
+    let params = SynthParams {
+        width: 32,
+        height: 32,
+        finest_passes: 1,
+        ..SynthParams::default()
+    };
+    let gpu_lean = Arc::new(GpuSynthesizer::new(ctx(), lean.clone()).unwrap());
+    let expect_refusal = |r: Result<(), Error>, what: &str| match r {
+        Err(Error::InvalidParameter(m)) => assert!(
+            m.contains("finest level") && m.contains("finest_sets"),
+            "{what}: unclear message {m:?}"
+        ),
+        other => panic!("{what}: expected a refusal, got {other:?}"),
+    };
+    expect_refusal(
+        gpu_lean.synthesize_to_host(ctx(), &params).map(|_| ()),
+        "GPU synthesis",
+    );
+    expect_refusal(synthesize_cpu(&lean, &params).map(|_| ()), "CPU synthesis");
+    // Advection corrects the finest level every frame.
+    expect_refusal(
+        Advection::new(
+            ctx(),
+            gpu_lean,
+            &SynthParams {
+                width: 32,
+                height: 32,
+                ..SynthParams::default()
+            },
+            AdvectOptions::default(),
+        )
+        .map(|_| ()),
+        "advection",
+    );
+    // The full analysis takes the same parameters.
+    let gpu_full = GpuSynthesizer::new(ctx(), full).unwrap();
+    gpu_full.synthesize_to_host(ctx(), &params).unwrap();
+}
+
+#[test]
+fn lean_analysis_file_round_trip() {
+    let (_, lean) = analyses(true);
+    let path = std::path::Path::new("lean.tsa");
+    let bytes = lean.to_bytes();
+    let back = Analysis::from_bytes(&bytes, path).unwrap();
+    assert_eq!(back, *lean);
+    assert!(!back.has_finest_sets());
+    let dir = std::env::temp_dir().join(format!("texsyn-lean-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("lean.tsa");
+    lean.save(&file).unwrap();
+    assert_eq!(Analysis::load(&file).unwrap(), *lean);
+    std::fs::remove_dir_all(&dir).unwrap();
+
+    // Only the finest level may go without its sets.
+    let mut coarse = (*lean).clone();
+    let l = coarse.levels.len() - 2;
+    coarse.levels[l].offsets.clear();
+    match coarse.validate() {
+        Err(Error::InvalidParameter(m)) => assert!(m.contains("offsets"), "{m}"),
+        other => panic!("expected a refusal, got {other:?}"),
+    }
+    match Analysis::from_bytes(&coarse.to_bytes(), path) {
+        Err(Error::BadAnalysisFile { reason, .. }) => {
+            assert!(reason.contains("offsets"), "{reason}")
+        }
+        other => panic!("expected a refusal, got {other:?}"),
+    }
+}
