@@ -28,7 +28,7 @@ pub const LEAF_SIZE: usize = 12;
 /// Marks a leaf in `Node::split_dim`.
 const LEAF: u32 = u32::MAX;
 
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 struct Node {
     /// Split dimension, or `LEAF`.
     split_dim: u32,
@@ -185,10 +185,8 @@ impl KdTree {
         let n = points.len() / dim;
         assert!(n < u32::MAX as usize, "KdTree::build: too many points");
         let mut perm: Vec<u32> = (0..n as u32).collect();
-        let mut nodes = Vec::with_capacity(2 * n.div_ceil(LEAF_SIZE / 2).max(1));
-        let mut lo = vec![0.0f32; dim];
-        let mut hi = vec![0.0f32; dim];
-        build_node(&points, dim, &mut perm, 0, &mut nodes, &mut lo, &mut hi);
+        // Two levels on two threads each: four subtrees at once.
+        let nodes = build_tree(&points, dim, &mut perm, 0, 2);
         let mut reordered = Vec::with_capacity(points.len());
         for &p in &perm {
             let p = p as usize;
@@ -423,29 +421,20 @@ impl KdTree {
     }
 }
 
-/// Builds the subtree over `perm` (original indices) and returns its node id.
-/// `offset` is the position of `perm[0]` in the final ordering.
-fn build_node(
+/// How `perm` (original indices) is split: `None` for a leaf, else the widest dimension
+/// (ties: the lowest), the split value and the left part's length; `perm` is reordered
+/// so that the left part comes first (median by value, then by index).
+fn split(
     points: &[f32],
     dim: usize,
     perm: &mut [u32],
-    offset: usize,
-    nodes: &mut Vec<Node>,
     lo: &mut [f32],
     hi: &mut [f32],
-) -> u32 {
-    let id = nodes.len() as u32;
+) -> Option<(u32, f32, usize)> {
     let n = perm.len();
     if n <= LEAF_SIZE {
-        nodes.push(Node {
-            split_dim: LEAF,
-            split: 0.0,
-            a: offset as u32,
-            b: (offset + n) as u32,
-        });
-        return id;
+        return None;
     }
-    // Widest dimension (ties: the lowest dimension).
     lo.fill(f32::INFINITY);
     hi.fill(f32::NEG_INFINITY);
     for &p in perm.iter() {
@@ -467,9 +456,32 @@ fn build_node(
     let mid = n / 2;
     let key = |p: u32| points[p as usize * dim + split_dim];
     perm.select_nth_unstable_by(mid, |&a, &b| key(a).total_cmp(&key(b)).then(a.cmp(&b)));
-    let split = key(perm[mid]);
+    Some((split_dim as u32, key(perm[mid]), mid))
+}
+
+/// Builds the subtree over `perm` (original indices) and returns its node id; nodes are
+/// numbered in preorder. `offset` is the position of `perm[0]` in the final ordering.
+fn build_node(
+    points: &[f32],
+    dim: usize,
+    perm: &mut [u32],
+    offset: usize,
+    nodes: &mut Vec<Node>,
+    lo: &mut [f32],
+    hi: &mut [f32],
+) -> u32 {
+    let id = nodes.len() as u32;
+    let Some((split_dim, split, mid)) = split(points, dim, perm, lo, hi) else {
+        nodes.push(Node {
+            split_dim: LEAF,
+            split: 0.0,
+            a: offset as u32,
+            b: (offset + perm.len()) as u32,
+        });
+        return id;
+    };
     nodes.push(Node {
-        split_dim: split_dim as u32,
+        split_dim,
         split,
         a: 0,
         b: 0,
@@ -480,6 +492,53 @@ fn build_node(
     nodes[id as usize].a = a;
     nodes[id as usize].b = b;
     id
+}
+
+/// Subtrees of fewer points are built on one thread.
+const PARALLEL_MIN_POINTS: usize = 1 << 14;
+
+/// [`build_node`] of a whole (sub)tree, numbered from 0, with the two subtrees of each
+/// of the top `depth` levels built on two threads: the same nodes as the sequential
+/// build (the right subtree's ids are shifted past the left subtree's, as preorder
+/// numbers them).
+fn build_tree(
+    points: &[f32],
+    dim: usize,
+    perm: &mut [u32],
+    offset: usize,
+    depth: u32,
+) -> Vec<Node> {
+    let (mut lo, mut hi) = (vec![0.0f32; dim], vec![0.0f32; dim]);
+    let mut nodes = Vec::with_capacity(2 * perm.len().div_ceil(LEAF_SIZE / 2).max(1));
+    if depth == 0 || perm.len() < PARALLEL_MIN_POINTS {
+        build_node(points, dim, perm, offset, &mut nodes, &mut lo, &mut hi);
+        return nodes;
+    }
+    let (split_dim, split, mid) = split(points, dim, perm, &mut lo, &mut hi)
+        .expect("a subtree of PARALLEL_MIN_POINTS points is split");
+    let (left, right) = perm.split_at_mut(mid);
+    let (left, right) = std::thread::scope(|s| {
+        let l = s.spawn(|| build_tree(points, dim, left, offset, depth - 1));
+        let r = build_tree(points, dim, right, offset + mid, depth - 1);
+        (l.join().expect("kd-tree build thread"), r)
+    });
+    let shift = |nd: &Node, by: u32| match nd.split_dim {
+        LEAF => *nd,
+        _ => Node {
+            a: nd.a + by,
+            b: nd.b + by,
+            ..*nd
+        },
+    };
+    nodes.push(Node {
+        split_dim,
+        split,
+        a: 1,
+        b: 1 + left.len() as u32,
+    });
+    nodes.extend(left.iter().map(|nd| shift(nd, 1)));
+    nodes.extend(right.iter().map(|nd| shift(nd, 1 + left.len() as u32)));
+    nodes
 }
 
 #[cfg(test)]
@@ -523,6 +582,31 @@ mod tests {
         all.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
         all.truncate(k);
         all
+    }
+
+    /// The parallel build gives the sequential build's tree, node for node.
+    #[test]
+    fn parallel_build_is_the_sequential_one() {
+        for (n, dim) in [(70_000, 8), (40_000, 3), (PARALLEL_MIN_POINTS, 4)] {
+            let mut pts = random_points(n, dim, n as u64);
+            // Repeated values: ties in the median are broken by index.
+            for v in pts.iter_mut().step_by(5) {
+                *v = (*v * 4.0).floor();
+            }
+            let mut seq_perm: Vec<u32> = (0..n as u32).collect();
+            let (mut lo, mut hi) = (vec![0.0; dim], vec![0.0; dim]);
+            let mut seq = Vec::new();
+            build_node(&pts, dim, &mut seq_perm, 0, &mut seq, &mut lo, &mut hi);
+            for depth in [1, 2, 3] {
+                let mut perm: Vec<u32> = (0..n as u32).collect();
+                let par = build_tree(&pts, dim, &mut perm, 0, depth);
+                assert!(par == seq, "n {n}, dim {dim}, depth {depth}: nodes differ");
+                assert!(
+                    perm == seq_perm,
+                    "n {n}, dim {dim}, depth {depth}: order differs"
+                );
+            }
+        }
     }
 
     #[test]
