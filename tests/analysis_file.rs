@@ -552,9 +552,17 @@ fn crafted_invalid_values() {
     a.levels[3].qe.push([0; DIM]);
     check(a, "level 3 qe has 257 entries");
 
+    // Only the finest level (4 here) may go without its similarity sets.
+    let mut a = base.clone();
+    a.levels[3].offsets.clear();
+    check(a, "level 3 offsets has 0 entries, expected 256");
+    let mut a = base.clone();
+    a.levels[4].offsets.truncate(1);
+    check(a, "level 4 offsets has 1 entries, expected 256");
     let mut a = base.clone();
     a.levels[4].offsets.clear();
-    check(a, "level 4 offsets has 0 entries, expected 256");
+    let back = Analysis::from_bytes(&a.to_bytes(), Path::new("lean.tsa")).unwrap();
+    assert!(!back.has_finest_sets() && back == a);
 
     // Tileable flag other than 0/1.
     let bytes = base.to_bytes();
