@@ -27,6 +27,15 @@ use super::par_ranges;
 /// PatchMatch iterations (alternating scan direction) without / after the kd-tree search.
 const ITERATIONS: usize = 4;
 const ITERATIONS_AFTER_KD: usize = 2;
+/// The same for large exemplars ([`SimilarityQuery::light`]). Measured on 12 photos of
+/// 256-512 px (3 CC0 photos resized to 256, 400 and 512 px, 3 crops of 320 px), seeds
+/// 1-4 (42 runs), against 2 and 1: the sets' mean feature distance rose 2-28% on the
+/// PatchMatch levels and 12-18% on the kd levels, the output's texture energy did not
+/// change (median ratios 1.00-1.01 / 0.99 / 0.99-1.01 at full / half / quarter resolution,
+/// the spread coming from syntheses whose copy-guard probe fell the other side of its
+/// budget), and the analysis took 20-30% less time at 512 px.
+const ITERATIONS_LIGHT: usize = 1;
+const ITERATIONS_AFTER_KD_LIGHT: usize = 0;
 /// Levels whose spacing is at most this get the kd-tree search.
 pub const KD_MAX_SPACING: u32 = 4;
 /// Points examined per kd-tree query (whole leaves at a time), on the finest level and
@@ -53,7 +62,8 @@ pub struct SimilarityQuery<'a> {
     /// The offsets found at the next coarser level (same layout as the result), tried
     /// first; `None` when that level was not searched.
     pub init: Option<&'a [[i16; 2]]>,
-    /// Half the PatchMatch iterations and half the kd-tree checks (large exemplars).
+    /// Large exemplars: one PatchMatch iteration instead of four, none after the kd-tree
+    /// search instead of two, and half the kd-tree checks.
     pub light: bool,
 }
 
@@ -258,11 +268,12 @@ pub fn similarity_offsets(
 
     // kd-tree search on fine levels, bounded by the initial sets.
     let use_kd = q.spacing <= KD_MAX_SPACING;
-    let iterations = if use_kd {
-        ITERATIONS_AFTER_KD
-    } else {
-        ITERATIONS
-    } >> q.light as u32;
+    let iterations = match (use_kd, q.light) {
+        (true, false) => ITERATIONS_AFTER_KD,
+        (false, false) => ITERATIONS,
+        (true, true) => ITERATIONS_AFTER_KD_LIGHT,
+        (false, true) => ITERATIONS_LIGHT,
+    };
     let steps = (1 + use_kd as usize + iterations) as f32;
     progress(1.0 / steps);
     step_done("initialization");
@@ -513,7 +524,7 @@ mod tests {
     #[test]
     fn sets_are_valid_deterministic_and_close_to_exact() {
         let (w, h, dim) = (44u32, 37u32, 16usize);
-        for tileable in [true, false] {
+        for (tileable, light) in [(true, false), (false, false), (true, true), (false, true)] {
             for (spacing, k) in [(1u32, 2u32), (2, 4), (8, 2), (8, 3)] {
                 let feats = if spacing == 1 {
                     features(w, h, dim)
@@ -531,7 +542,7 @@ mod tests {
                     k,
                     spacing,
                     init: None,
-                    light: false,
+                    light,
                 };
                 let a = similarity_offsets(&q, 1, &mut |_| {});
                 assert_eq!(a.len(), (w * h * (k - 1)) as usize);
@@ -579,17 +590,23 @@ mod tests {
                 let mean = sum / (w * h) as f64;
                 let exact = exact_mean(&q);
                 assert!(mean >= exact * 0.9999);
-                println!("tileable {tileable} spacing {spacing} k {k}: mean distance {mean} vs exact {exact}");
-                let tolerance = if spacing <= KD_MAX_SPACING { 1.1 } else { 1.2 };
+                let what = format!("tileable {tileable} light {light} spacing {spacing} k {k}");
+                println!("{what}: mean distance {mean} vs exact {exact}");
+                // The light search trades closeness for time (large exemplars).
+                let tolerance = match (spacing <= KD_MAX_SPACING, light) {
+                    (true, false) => 1.1,
+                    (false, false) => 1.2,
+                    (true, true) => 1.25,
+                    (false, true) => 1.5,
+                };
                 assert!(
                     mean <= exact * tolerance,
-                    "tileable {tileable} spacing {spacing} k {k}: mean distance {mean} vs exact {exact}"
+                    "{what}: mean distance {mean} vs exact {exact}"
                 );
                 // A coarser level's result given as the initialization is kept or improved.
                 let again = similarity_offsets(
                     &SimilarityQuery {
                         init: Some(&a),
-                        light: false,
                         ..q
                     },
                     1,
