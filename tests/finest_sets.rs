@@ -12,6 +12,9 @@ use texsyn::field::Field;
 use texsyn::gpu::advect::{AdvectOptions, Advection};
 use texsyn::gpu::{synth::GpuSynthesizer, GpuContext};
 use texsyn::passes::synthesize_cpu;
+use texsyn::surface::atlas::AtlasOptions;
+use texsyn::surface::mesh::Mesh;
+use texsyn::surface::pipeline::{self, SurfaceOptions};
 use texsyn::{Error, SynthParams};
 
 fn ctx() -> &'static GpuContext {
@@ -99,6 +102,30 @@ fn lean_analysis_synthesizes_the_same_bytes() {
             );
         }
     }
+}
+
+/// `texsyn surface` analyses without the finest sets too: the atlas is the same.
+#[test]
+fn lean_analysis_synthesizes_the_same_atlas() {
+    let (full, lean) = analyses(false);
+    let mut mesh = Mesh::cube(1.0, 2);
+    mesh.validate_and_repair().unwrap();
+    let opts = SurfaceOptions {
+        atlas: AtlasOptions::for_size(64),
+        ..SurfaceOptions::default()
+    };
+    let prep = pipeline::prepare(&mesh, full.levels.len(), &opts).unwrap();
+    let base = SynthParams {
+        seed: 5,
+        ..SynthParams::default()
+    };
+    let run = |a: &Arc<Analysis>| {
+        let synth = GpuSynthesizer::new(ctx(), a.clone()).unwrap();
+        pipeline::synthesize(ctx(), &synth, &prep, &base, &[])
+            .unwrap()
+            .0
+    };
+    assert_eq!(run(&full), run(&lean), "atlas syntheses differ");
 }
 
 #[test]

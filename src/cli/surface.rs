@@ -298,6 +298,9 @@ pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
         Source::Image(ex) => {
             let options = AnalysisOptions {
                 tileable: args.tile.get(),
+                // The atlas synthesis leaves the finest level uncorrected, as `synth`
+                // does: its similarity sets would go unread (same bytes without them).
+                finest_sets: false,
                 ..AnalysisOptions::default()
             };
             texsyn::analysis::analyze(&ex, &options, ui.analysis_progress())?
