@@ -27,13 +27,14 @@ use super::par_ranges;
 /// PatchMatch iterations (alternating scan direction) without / after the kd-tree search.
 const ITERATIONS: usize = 4;
 const ITERATIONS_AFTER_KD: usize = 2;
-/// The same for large exemplars ([`SimilarityQuery::light`]). Measured on 12 photos of
-/// 256-512 px (3 CC0 photos resized to 256, 400 and 512 px, 3 crops of 320 px), seeds
-/// 1-4 (42 runs), against 2 and 1: the sets' mean feature distance rose 2-28% on the
-/// PatchMatch levels and 12-18% on the kd levels, the output's texture energy did not
-/// change (median ratios 1.00-1.01 / 0.99 / 0.99-1.01 at full / half / quarter resolution,
-/// the spread coming from syntheses whose copy-guard probe fell the other side of its
-/// budget), and the analysis took 20-30% less time at 512 px.
+/// The same for large exemplars ([`SimilarityQuery::light`]). Measured against 2 and 1
+/// (512x512 outputs): on 12 grey photos of 256-512 px (3 CC0 photos resized to 256, 400
+/// and 512 px, 3 crops of 320 px) x seeds 1-4 and 5 RGB photos of 300-400 px x seeds 1-2
+/// (52 runs), the sets' mean feature distance rose 2-28% on the PatchMatch levels and
+/// 12-18% on the kd levels, but the output's texture energy did not change (median ratios
+/// 0.98-1.01 / 0.99-1.02 / 0.99-1.01 at full / half / quarter resolution per group; single
+/// outputs moved where the copy guard's probe fell the other side of its budget, either
+/// way), and the analysis took 20-35% less time at 400-512 px.
 const ITERATIONS_LIGHT: usize = 1;
 const ITERATIONS_AFTER_KD_LIGHT: usize = 0;
 /// Levels whose spacing is at most this get the kd-tree search.
@@ -288,7 +289,7 @@ pub fn similarity_offsets(
         for &p in &members {
             pts.extend_from_slice(feature(p as usize));
         }
-        let tree = KdTree::build(pts, q.dim);
+        let tree = KdTree::build_threaded(pts, q.dim, threads);
         step_done("kd-tree build");
         let checks = if q.spacing == 1 {
             KD_CHECKS_FINEST

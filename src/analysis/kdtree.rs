@@ -169,6 +169,12 @@ impl KdTree {
     /// If `dim == 0` while `points` is not empty, if `points.len()` is not a multiple of
     /// `dim`, or if there are `2^32` points or more.
     pub fn build(points: Vec<f32>, dim: usize) -> Self {
+        Self::build_threaded(points, dim, 0)
+    }
+
+    /// [`Self::build`] on at most `threads` threads (0: all cores); the tree is the same
+    /// for any thread count.
+    pub fn build_threaded(points: Vec<f32>, dim: usize, threads: usize) -> Self {
         if points.is_empty() {
             return Self {
                 dim,
@@ -185,8 +191,13 @@ impl KdTree {
         let n = points.len() / dim;
         assert!(n < u32::MAX as usize, "KdTree::build: too many points");
         let mut perm: Vec<u32> = (0..n as u32).collect();
-        // Two levels on two threads each: four subtrees at once.
-        let nodes = build_tree(&points, dim, &mut perm, 0, 2);
+        let threads = match threads {
+            0 => std::thread::available_parallelism().map_or(1, |t| t.get()),
+            t => t,
+        };
+        // Subtrees split over the threads: 2^depth of them at once.
+        let depth = threads.next_power_of_two().trailing_zeros().min(4);
+        let nodes = build_tree(&points, dim, &mut perm, 0, depth);
         let mut reordered = Vec::with_capacity(points.len());
         for &p in &perm {
             let p = p as usize;
