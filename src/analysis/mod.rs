@@ -427,6 +427,56 @@ pub fn par_ranges<T: Send>(
     results.into_iter().map(|r| r.unwrap()).collect()
 }
 
+/// Fills `out` in parallel: `f(range, part)` writes the items `range` of `out` into
+/// `part` (`part.len() == range.len()`). The ranges are those of [`par_ranges`] over
+/// `out.len() / per_item` items, `per_item` elements each (e.g. rows of `per_item`
+/// pixels), so the results do not depend on the thread count.
+///
+/// Where [`par_ranges`] returns per-chunk vectors that the caller concatenates, this
+/// writes each element once, in place: on the analysis's large tables the second copy
+/// of fresh memory, with its page faults, cost as much as the arithmetic.
+pub fn par_fill<T: Send>(
+    out: &mut [T],
+    per_item: usize,
+    threads: usize,
+    f: impl Fn(std::ops::Range<usize>, &mut [T]) + Sync,
+) {
+    let n = out.len() / per_item.max(1);
+    assert_eq!(n * per_item, out.len(), "par_fill: partial item");
+    let chunk = n.div_ceil(64).max(1);
+    let parts: Vec<(usize, &mut [T])> = out
+        .chunks_mut(chunk * per_item)
+        .enumerate()
+        .map(|(c, part)| (c * chunk, part))
+        .collect();
+    let queue = std::sync::Mutex::new(parts.into_iter());
+    let work = || loop {
+        let next = queue.lock().expect("par_fill queue").next();
+        let Some((start, part)) = next else { break };
+        let len = part.len() / per_item.max(1);
+        f(start..start + len, part);
+    };
+    let threads = if threads == 0 {
+        std::thread::available_parallelism()
+            .map(|t| t.get())
+            .unwrap_or(1)
+    } else {
+        threads
+    };
+    let workers = threads.min(n.div_ceil(chunk).max(1));
+    if workers <= 1 {
+        work();
+        return;
+    }
+    std::thread::scope(|s| {
+        let handles: Vec<_> = (1..workers).map(|_| s.spawn(work)).collect();
+        work();
+        for h in handles {
+            h.join().expect("analysis worker panicked");
+        }
+    });
+}
+
 /// Whether the exemplar tiles: the mean squared difference across its wrap-around
 /// seams is at most 1.25 times that between neighbouring interior pixels.
 ///
