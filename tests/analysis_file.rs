@@ -563,6 +563,24 @@ fn crafted_invalid_values() {
     a.levels[4].offsets.clear();
     let back = Analysis::from_bytes(&a.to_bytes(), Path::new("lean.tsa")).unwrap();
     assert!(!back.has_finest_sets() && back == a);
+    // Without its sets the finest level may go without its et/qe tables too, and level
+    // 0 (never corrected) may go without them always; other levels, never.
+    a.levels[4].et.clear();
+    a.levels[4].qe.clear();
+    a.levels[0].et.clear();
+    a.levels[0].qe.clear();
+    let back = Analysis::from_bytes(&a.to_bytes(), Path::new("lean.tsa")).unwrap();
+    assert!(!back.has_tables(4) && !back.has_tables(0) && back.has_tables(1) && back == a);
+    let mut b = a.clone();
+    b.levels[0].qe = base.levels[0].qe.clone();
+    check(b, "level 0 qe has 256 entries, expected 0");
+    let mut b = a.clone();
+    b.levels[4].offsets = base.levels[4].offsets.clone();
+    check(b, "level 4 has similarity sets but no et/qe tables");
+    let mut b = base.clone();
+    b.levels[2].et.clear();
+    b.levels[2].qe.clear();
+    check(b, "level 2 et has 0 entries, expected 256");
 
     // Tileable flag other than 0/1.
     let bytes = base.to_bytes();

@@ -53,20 +53,38 @@ fn lean_analysis_differs_only_in_the_finest_sets() {
         lean.validate().unwrap();
         let top = full.levels.len() - 1;
         assert!(lean.levels[top].offsets.is_empty());
+        // Its tables go too (only the finest correction reads them); level 0, never
+        // corrected, has none in either analysis.
+        assert!(full.has_tables(top) && !lean.has_tables(top));
+        assert!(lean.levels[top].et.is_empty() && lean.levels[top].qe.is_empty());
+        assert!(!full.has_tables(0) && !lean.has_tables(0));
+        assert!((1..top).all(|l| full.has_tables(l) && lean.has_tables(l)));
         // The full analysis really searched them (not all the coherent candidate).
         assert!(full.levels[top].offsets.iter().any(|o| *o != [0, 0]));
         let mut patched = (*lean).clone();
-        patched.levels[top].offsets = full.levels[top].offsets.clone();
+        patched.levels[top] = full.levels[top].clone();
         assert_eq!(patched, *full, "tileable {tileable}: other tables differ");
     }
-    // k = 1 has no sets to leave out.
+    // k = 1 has no sets to leave out, but the finest tables still go.
     let ex = common::gravel_crop(40);
     let k1 = AnalysisOptions {
         k: 1,
         finest_sets: false,
         ..AnalysisOptions::default()
     };
-    assert!(analyze(&ex, &k1, |_| {}).unwrap().has_finest_sets());
+    let a = analyze(&ex, &k1, |_| {}).unwrap();
+    assert!(a.has_finest_sets() && !a.has_tables(a.levels.len() - 1));
+    a.validate().unwrap();
+    let params = SynthParams {
+        width: 24,
+        height: 24,
+        finest_passes: 1,
+        ..SynthParams::default()
+    };
+    assert!(matches!(
+        synthesize_cpu(&a, &params),
+        Err(Error::InvalidParameter(m)) if m.contains("finest_sets")
+    ));
 }
 
 #[test]

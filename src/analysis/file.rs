@@ -448,17 +448,8 @@ trait Input {
     fn remaining(&self) -> u64;
     /// Fills `buf` with the next bytes.
     fn fill(&mut self, buf: &mut [u8], what: &str) -> std::result::Result<(), String>;
-    /// A u64 element count that must equal `expected`, then its `N`-wide i16 elements,
-    /// read straight into their vector.
-    fn i16_arrays<const N: usize>(
-        &mut self,
-        expected: u64,
-        what: &str,
-    ) -> std::result::Result<Vec<[i16; N]>, String> {
-        self.i16_arrays_or_none(expected, false, what)
-    }
-
-    /// [`Self::i16_arrays`], also taking an empty table where `may_be_empty`.
+    /// A u64 element count that must equal `expected` (or be 0 where `may_be_empty`),
+    /// then its `N`-wide i16 elements, read straight into their vector.
     fn i16_arrays_or_none<const N: usize>(
         &mut self,
         expected: u64,
@@ -647,12 +638,24 @@ fn decode_payload(r: &mut impl Input) -> std::result::Result<Analysis, String> {
             }
         }
 
-        let et = r.i16_arrays::<DIM>(pixels, &lw("et"))?;
-        let qe = r.i16_arrays::<DIM>(pixels, &lw("qe"))?;
+        // Level 0 and a finest level without sets have no tables (LevelData::et);
+        // validate() checks the combination.
+        let finest = l + 1 == n_levels;
+        let et = r.i16_arrays_or_none::<DIM>(pixels, l == 0 || finest, &lw("et"))?;
+        let qe = r.i16_arrays_or_none::<DIM>(pixels, l == 0 || finest, &lw("qe"))?;
         let n_offsets = pixels * (k as u64 - 1);
         // The finest level's sets may be left out (AnalysisOptions::finest_sets).
-        let finest = l + 1 == n_levels;
         let offsets = r.i16_arrays_or_none::<2>(n_offsets, finest, &lw("offsets"))?;
+        if et.is_empty() != qe.is_empty() {
+            return Err(format!(
+                "level {l} qe has {} entries, expected {}",
+                qe.len(),
+                et.len()
+            ));
+        }
+        if finest && et.is_empty() && !offsets.is_empty() {
+            return Err(format!("level {l} has similarity sets but no et/qe tables"));
+        }
 
         levels.push(LevelData {
             spacing,
@@ -782,11 +785,17 @@ impl Analysis {
                 return bad(format!("level {l} shift is {}, expected < 32", level.shift));
             }
             let offsets = pixels * (self.k as usize - 1);
-            // The finest level's sets may be left out (AnalysisOptions::finest_sets).
+            // The finest level's sets may be left out (AnalysisOptions::finest_sets), and
+            // with them its tables; level 0 never has tables (LevelData::et).
             let finest = l + 1 == self.levels.len();
+            let tables = if level.et.is_empty() && (l == 0 || finest) {
+                0
+            } else {
+                pixels
+            };
             for (name, len, expected) in [
-                ("et", level.et.len(), pixels),
-                ("qe", level.qe.len(), pixels),
+                ("et", level.et.len(), tables),
+                ("qe", level.qe.len(), tables),
                 ("offsets", level.offsets.len(), offsets),
             ] {
                 if len != expected && !(finest && name == "offsets" && len == 0) {
@@ -794,6 +803,10 @@ impl Analysis {
                         "level {l} {name} has {len} entries, expected {expected}"
                     ));
                 }
+            }
+            // A finest level without tables cannot have sets: they serve its correction.
+            if finest && tables == 0 && !level.offsets.is_empty() {
+                return bad(format!("level {l} has similarity sets but no et/qe tables"));
             }
         }
         Ok(())

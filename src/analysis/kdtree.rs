@@ -155,6 +155,11 @@ fn may_contain(rd: f32, bound: f32) -> bool {
 struct Scratch {
     heap: BinaryHeap<std::cmp::Reverse<(u64, u32)>>,
     offsets: Vec<f32>,
+    /// The current descent's farther children, not yet queued: `(heap key, split
+    /// dimension, offset along it)`.
+    pending: Vec<(u64, u32, f32)>,
+    /// The popped bin's offsets.
+    off: Vec<f32>,
 }
 
 thread_local! {
@@ -380,10 +385,11 @@ impl KdTree {
         s.heap.clear();
         s.offsets.clear();
         s.offsets.resize(dim, 0.0);
+        s.off.clear();
+        s.off.resize(dim, 0.0);
         // Heap key: (lower bound bits, node); bounds are >= 0, so the bits order like
         // the values; the node id breaks ties deterministically. Payload: offset slot.
         s.heap.push(std::cmp::Reverse((0u64, 0u32)));
-        let mut off = vec![0.0f32; dim];
         let mut checks = 0usize;
         while let Some(std::cmp::Reverse((key, slot))) = s.heap.pop() {
             let rd = f32::from_bits((key >> 32) as u32);
@@ -395,9 +401,14 @@ impl KdTree {
             }
             let mut node = (key & 0xffff_ffff) as u32;
             let slot = slot as usize;
-            off.copy_from_slice(&s.offsets[slot * dim..(slot + 1) * dim]);
-            // Descending to the nearer child keeps the lower bound; the farther child is
-            // queued with its own.
+            s.off
+                .copy_from_slice(&s.offsets[slot * dim..(slot + 1) * dim]);
+            // Descending to the nearer child keeps the lower bound (and the offsets);
+            // the farther child has its own. Those are queued only if the search goes on
+            // after this leaf: with a small budget most queries end at their first leaf,
+            // and the heap pushes were most of their cost. Queued late or not, the heap
+            // holds the same keys, so the order of the bins is the same.
+            s.pending.clear();
             loop {
                 let nd = self.nodes[node as usize];
                 if nd.split_dim == LEAF {
@@ -418,15 +429,21 @@ impl KdTree {
                 } else {
                     (nd.b, nd.a)
                 };
-                let far_rd = (rd - off[d] * off[d] + diff * diff).max(0.0);
+                let far_rd = (rd - s.off[d] * s.off[d] + diff * diff).max(0.0);
                 if may_contain(far_rd, bound) {
-                    let new_slot = s.offsets.len() / dim;
-                    s.offsets.extend_from_slice(&off);
-                    s.offsets[new_slot * dim + d] = diff;
                     let key = ((far_rd.to_bits() as u64) << 32) | far as u64;
-                    s.heap.push(std::cmp::Reverse((key, new_slot as u32)));
+                    s.pending.push((key, d as u32, diff));
                 }
                 node = near;
+            }
+            if checks >= max_checks && bound < f32::INFINITY {
+                break; // the next pop would stop
+            }
+            for &(key, d, diff) in &s.pending {
+                let new_slot = s.offsets.len() / dim;
+                s.offsets.extend_from_slice(&s.off);
+                s.offsets[new_slot * dim + d as usize] = diff;
+                s.heap.push(std::cmp::Reverse((key, new_slot as u32)));
             }
         }
     }

@@ -267,7 +267,8 @@ pub struct AnalysisOptions {
     /// `false` saves the longest step of the search (measured on 128-512 px exemplars:
     /// 8-26% of the analysis time, 2 cores) for the same output bytes. The
     /// finest level's `offsets` table is then empty ([`Analysis::has_finest_sets`]), and
-    /// a synthesis that would correct that level is refused with an error.
+    /// a synthesis that would correct that level is refused with an error. Its `et`
+    /// and `qe` tables, which only that correction reads, are left out too.
     pub finest_sets: bool,
 }
 
@@ -296,7 +297,10 @@ pub struct LevelData {
     /// Non-tileable exemplars: synthesized coordinates stay in
     /// `[margin, size - 1 - margin]` so that no neighbourhood crosses the border.
     pub margin: u32,
-    /// Quantized 8D transformed exemplar `Et_l`, row-major `width*height`.
+    /// Quantized 8D transformed exemplar `Et_l`, row-major `width*height`. Empty, with
+    /// `qe`, on levels no synthesis corrects: level 0 (synthesis starts there from one
+    /// coordinate and goes on upsampling) and a finest level analysed without its
+    /// similarity sets ([`AnalysisOptions::finest_sets`]).
     pub et: Vec<[i16; DIM]>,
     /// Quantized runtime projection `P_l` (8 rows x 32 columns; column `4*0..` is the
     /// block of diagonal `j` in `DIAGONALS` order: column = j*8 + c).
@@ -338,6 +342,17 @@ impl Analysis {
     /// which serves only syntheses that leave the finest level uncorrected.
     pub fn has_finest_sets(&self) -> bool {
         self.k <= 1 || self.levels.last().is_none_or(|l| !l.offsets.is_empty())
+    }
+
+    /// Whether level `l` has its correction tables (`et`, `qe`): see [`LevelData::et`].
+    pub fn has_tables(&self, l: usize) -> bool {
+        self.levels.get(l).is_some_and(|l| !l.et.is_empty())
+    }
+
+    /// Where level `l`'s `et` and `qe` entries start in the tables of all levels
+    /// concatenated (levels without tables take no room).
+    pub fn table_base(&self, l: usize) -> usize {
+        self.levels[..l].iter().map(|l| l.et.len()).sum()
     }
 }
 
@@ -671,52 +686,67 @@ pub fn analyze(
         let spacing = 1u32 << (top - l as u32);
         let margin = level_margin(ex.width, ex.height, spacing, tileable);
         let done = l as u32;
-        report(done, Stage::Appearance, 0.0);
-        let t0 = std::time::Instant::now();
-        let (et, residual) =
-            appearance::transformed_exemplar(plane, spacing, tileable, opts.appearance, threads);
-        let t1 = std::time::Instant::now();
-        report(done, Stage::Neighbourhoods, 0.0);
-        // Where the 5x5 neighbourhood (4 h_l wide) spans the whole exemplar, the level is
-        // a near-constant blur and similarity sets are noise: skip the search there and
-        // store zero offsets (those candidates are then the coherent ones). Saves a
-        // quarter of the analysis time of a 128x128 exemplar.
+        // Left out where no synthesis reads them (see LevelData::et): level 0, and the
+        // finest level without its sets. An unsearched level needs no features either.
         let searched = |spacing: u32| 4 * spacing < ex.width.min(ex.height);
-        // Large exemplars (256x256 pixels and more) search their sets in Et alone (8D,
-        // the 5x5 neighbourhood) with less effort (`SimilarityQuery::light`): measured on
-        // 400 and 512 px photos, half the effort took a third less CPU time (2.5 -> 1.7 s
-        // at 400 px) for the same texture energy (within 5%, either sign) and verbatim
-        // figures, and the lighter search of the twenty-fourth session 20-30% less time
-        // again for the same medians; smaller exemplars keep the 16D features (Et and the
-        // projected runtime neighbourhood) and the full effort, which cost them little.
+        let tables = !(l == 0 || spacing == 1 && !opts.finest_sets);
         let large = ex.width as u64 * ex.height as u64 >= LARGE_EXEMPLAR_PIXELS;
-        let q = appearance::quantize_level(
-            &et,
-            ex.width,
-            ex.height,
-            spacing,
-            tileable,
-            threads,
-            searched(spacing) && !large,
-        );
-        // The tables the synthesis reads: these, or the colours' alone (FeatureMode::Sets;
-        // the similarity sets below are still searched with the feature channel).
-        let (run, run_residual) = match &colour_stack {
-            Some(cs) => {
-                let (et_c, r_c) = appearance::transformed_exemplar(
-                    &cs[l],
-                    spacing,
-                    tileable,
-                    opts.appearance,
-                    threads,
-                );
-                let q_c = appearance::quantize_level(
-                    &et_c, ex.width, ex.height, spacing, tileable, threads, false,
-                );
-                (Some(q_c), r_c)
-            }
-            None => (None, residual),
-        };
+        let t0 = std::time::Instant::now();
+        let (mut t1, mut run, mut et_float) = (t0, None, Vec::new());
+        if tables || searched(spacing) {
+            report(done, Stage::Appearance, 0.0);
+            let (et, residual) = appearance::transformed_exemplar(
+                plane,
+                spacing,
+                tileable,
+                opts.appearance,
+                threads,
+            );
+            t1 = std::time::Instant::now();
+            report(done, Stage::Neighbourhoods, 0.0);
+            // Where the 5x5 neighbourhood (4 h_l wide) spans the whole exemplar, the level
+            // is a near-constant blur and similarity sets are noise: `searched` is false,
+            // the search is skipped and zero offsets stored (those candidates are then the
+            // coherent ones). Saves a quarter of the analysis time of a 128x128 exemplar.
+            //
+            // Large exemplars (256x256 pixels and more) search their sets in Et alone (8D,
+            // the 5x5 neighbourhood) with less effort (`SimilarityQuery::light`): measured
+            // on 400 and 512 px photos, half the effort took a third less CPU time (2.5 ->
+            // 1.7 s at 400 px) for the same texture energy (within 5%, either sign) and
+            // verbatim figures, and the lighter search of the twenty-fourth session 20-30%
+            // less time again for the same medians; smaller exemplars keep the 16D
+            // features (Et and the projected runtime neighbourhood) and the full effort,
+            // which cost them little.
+            let q = appearance::quantize_level(
+                &et,
+                ex.width,
+                ex.height,
+                spacing,
+                tileable,
+                threads,
+                searched(spacing) && !large,
+            );
+            // The tables the synthesis reads: these, or the colours' alone
+            // (FeatureMode::Sets; the similarity sets below are still searched with the
+            // feature channel).
+            run = Some(match &colour_stack {
+                Some(cs) => {
+                    let (et_c, r_c) = appearance::transformed_exemplar(
+                        &cs[l],
+                        spacing,
+                        tileable,
+                        opts.appearance,
+                        threads,
+                    );
+                    let q_c = appearance::quantize_level(
+                        &et_c, ex.width, ex.height, spacing, tileable, threads, false,
+                    );
+                    (q, Some(q_c), r_c)
+                }
+                None => (q, None, residual),
+            });
+            et_float = et;
+        }
         let t2 = std::time::Instant::now();
         let exclusion = opts
             .exclusion_radius
@@ -731,9 +761,12 @@ pub fn analyze(
             kcoherence::similarity_offsets(
                 &kcoherence::SimilarityQuery {
                     features: if large {
-                        et.as_flattened()
+                        et_float.as_flattened()
                     } else {
-                        &q.features
+                        &run.as_ref()
+                            .expect("a searched level has its features")
+                            .0
+                            .features
                     },
                     dim: if large { DIM } else { appearance::FEATURE_DIM },
                     width: ex.width,
@@ -764,18 +797,36 @@ pub fn analyze(
                 t2.elapsed()
             );
         }
-        let run = run.unwrap_or(q);
-        levels.push(LevelData {
-            spacing,
-            margin,
-            et: run.et,
-            proj: run.proj,
-            qe: run.qe,
-            shift: run.shift,
-            offsets,
-            residual_variance: run_residual as f32,
-            runtime_residual_variance: run.runtime_residual as f32,
-        });
+        let level = match run {
+            Some((q, q_colour, residual)) if tables => {
+                let run = q_colour.unwrap_or(q);
+                LevelData {
+                    spacing,
+                    margin,
+                    et: run.et,
+                    proj: run.proj,
+                    qe: run.qe,
+                    shift: run.shift,
+                    offsets,
+                    residual_variance: residual as f32,
+                    runtime_residual_variance: run.runtime_residual as f32,
+                }
+            }
+            // No tables: nothing to report either (0, shown as "-"; not NaN, so that
+            // analyses still compare equal to themselves).
+            _ => LevelData {
+                spacing,
+                margin,
+                et: Vec::new(),
+                proj: [[0; 4 * DIM]; DIM],
+                qe: Vec::new(),
+                shift: 0,
+                offsets,
+                residual_variance: 0.0,
+                runtime_residual_variance: 0.0,
+            },
+        };
+        levels.push(level);
         report(done + 1, Stage::LevelDone, 1.0);
     }
     Ok(Analysis {

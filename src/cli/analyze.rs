@@ -146,9 +146,17 @@ pub fn print_levels(ui: &Ui, a: &Analysis) {
     ui.info("PCA residual variance (fraction of variance not kept in 8D):");
     ui.info("  level  spacing  margin  appearance  runtime");
     for (l, lv) in a.levels.iter().enumerate() {
-        ui.info(format!(
-            "  {:>5}  {:>7}  {:>6}  {:>10.5}  {:>7.5}",
-            l, lv.spacing, lv.margin, lv.residual_variance, lv.runtime_residual_variance
-        ));
+        if a.has_tables(l) {
+            ui.info(format!(
+                "  {:>5}  {:>7}  {:>6}  {:>10.5}  {:>7.5}",
+                l, lv.spacing, lv.margin, lv.residual_variance, lv.runtime_residual_variance
+            ));
+        } else {
+            // Never corrected, so never analysed (LevelData::et).
+            ui.info(format!(
+                "  {:>5}  {:>7}  {:>6}  {:>10}  {:>7}",
+                l, lv.spacing, lv.margin, "-", "-"
+            ));
+        }
     }
 }

@@ -202,7 +202,7 @@ impl FineTables {
     /// Builds the tables for the finest level, or `None` if a table exceeds the
     /// device's buffer limits.
     fn build(ctx: &GpuContext, a: &Analysis) -> Option<Self> {
-        let level = a.levels.last()?;
+        let level = a.levels.last().filter(|l| !l.et.is_empty())?;
         let px = a.width as u64 * a.height as u64;
         let bytes = px << (2 * crate::passes::common::QUARTER_BITS) << 4;
         let limits = ctx.limits();
@@ -218,7 +218,7 @@ impl FineTables {
             ex_size: [a.width as i32, a.height as i32],
             tileable: a.tileable as i32,
             quarter: 1,
-            et_base: ((a.levels.len() - 1) as u64 * px) as u32,
+            et_base: a.table_base(a.levels.len() - 1) as u32,
             ..Default::default()
         };
         let (et, qe) = std::thread::scope(|s| {
@@ -1787,7 +1787,8 @@ pub fn check_exemplar_fits(ctx: &GpuContext, width: u32, height: u32, k: u32) ->
     }
     let px = width as u64 * height as u64;
     let levels = crate::analysis::level_count(width, height) as u64 + 1;
-    let table_bytes = px * levels * 16;
+    // Level 0 has no et/qe tables (LevelData::et).
+    let table_bytes = px * (levels - 1) * 16;
     let offset_bytes = px * levels * 4 * (k.saturating_sub(1) as u64);
     let max = limits
         .max_storage_buffer_binding_size

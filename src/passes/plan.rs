@@ -257,7 +257,9 @@ impl SynthPlan {
                 params.passes, params.finest_passes
             )));
         }
-        if params.finest_passes > 0 && !analysis.has_finest_sets() {
+        let finest = analysis.levels.len().saturating_sub(1);
+        if params.finest_passes > 0 && !(analysis.has_finest_sets() && analysis.has_tables(finest))
+        {
             return Err(Error::InvalidParameter(format!(
                 "{} correction pass(es) at the finest level need its similarity sets, which \
                  this analysis left out (AnalysisOptions::finest_sets = false): analyse the \
@@ -507,7 +509,7 @@ impl SynthPlan {
             k: analysis.k as i32,
             shift: ld.shift,
             coherence: (self.params.coherence * 16.0).round() as u32,
-            et_base: level as u32 * px,
+            et_base: analysis.table_base(level) as u32,
             off_base: level as u32 * px * km1,
             proj_base: level as u32 * 64,
             coord_base: lp.coord_base,
