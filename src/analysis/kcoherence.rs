@@ -37,6 +37,13 @@ const ITERATIONS_AFTER_KD: usize = 2;
 /// way), and the analysis took 20-35% less time at 400-512 px.
 const ITERATIONS_LIGHT: usize = 1;
 const ITERATIONS_AFTER_KD_LIGHT: usize = 0;
+/// Large exemplars ([`SimilarityQuery::light`]) search the sets of levels with at least
+/// this spacing `h` only on a grid of every `h / GRID_DIVISOR`-th pixel in each
+/// direction; every other pixel takes its grid pixel's members shifted by their distance
+/// (or unshifted), whichever is nearer. Those levels are blurred at the scale of `h`, so
+/// a member `h / 16` or less away from the best is as good as the best.
+pub const GRID_MIN_SPACING: u32 = 16;
+const GRID_DIVISOR: u32 = 8;
 /// Levels whose spacing is at most this get the kd-tree search.
 pub const KD_MAX_SPACING: u32 = 4;
 /// Points examined per kd-tree query (whole leaves at a time), on the finest level and
@@ -227,6 +234,13 @@ pub fn similarity_offsets(
     let (vw, vh) = ((w - 2 * m).max(1) as u32, (h - 2 * m).max(1) as u32);
     let feature = |p: usize| &q.features[p * q.dim..(p + 1) * q.dim];
     let seed = q.width ^ q.height.rotate_left(16) ^ q.exclusion_radius.rotate_left(8);
+    // Grid step: 1 = every pixel is searched.
+    let g = if q.light && q.spacing >= GRID_MIN_SPACING {
+        (q.spacing / GRID_DIVISOR) as i32
+    } else {
+        1
+    };
+    let on_grid = |x: i32, y: i32| x % g == 0 && y % g == 0;
 
     // TEXSYN_PROFILE: when each step ends, for tuning.
     let (profile, t_start) = (
@@ -245,6 +259,10 @@ pub fn similarity_offsets(
         for p in range {
             best.fill((f32::INFINITY, NONE));
             let (px, py) = ((p % wu) as i32, (p / wu) as i32);
+            if !on_grid(px, py) {
+                out.extend_from_slice(&best);
+                continue;
+            }
             let fp = feature(p);
             if let Some(init) = q.init {
                 for o in &init[p * want..(p + 1) * want] {
@@ -341,11 +359,14 @@ pub fn similarity_offsets(
                         let x = if forward { xi } else { wu - 1 - xi };
                         let p = y * wu + x;
                         let (px, py) = (x as i32, y as i32);
+                        if !on_grid(px, py) {
+                            continue;
+                        }
                         let fp = feature(p);
                         best.copy_from_slice(&local[(p - base) * want..(p - base + 1) * want]);
                         // Propagation: the shifted matches of the two neighbours visited
                         // just before (this band) or in the previous iteration (others).
-                        for (dx, dy) in [(step, 0), (0, step)] {
+                        for (dx, dy) in [(step * g, 0), (0, step * g)] {
                             let (nx, ny) = (px + dx, py + dy);
                             let (nx, ny) = if q.tileable {
                                 (wrap1(nx, w), wrap1(ny, h))
@@ -413,6 +434,70 @@ pub fn similarity_offsets(
         state = next.concat();
         progress((1 + use_kd as usize + it + 1) as f32 / steps);
         step_done(&format!("PatchMatch iteration {it}"));
+    }
+
+    if g > 1 {
+        // Every pixel off the grid: its grid pixel's members, shifted by the distance to
+        // it or not, whichever are nearer.
+        let grid_state = &state;
+        state = par_ranges(n, threads, |range| {
+            let mut out = Vec::with_capacity(range.len() * want);
+            let mut best = vec![(f32::INFINITY, NONE); want];
+            for p in range {
+                let (px, py) = ((p % wu) as i32, (p / wu) as i32);
+                if on_grid(px, py) {
+                    out.extend_from_slice(&grid_state[p * want..(p + 1) * want]);
+                    continue;
+                }
+                best.fill((f32::INFINITY, NONE));
+                // The nearest grid pixel (the one before where the next is past the edge).
+                let nearest = |v: i32, size: i32| {
+                    let up = v - v % g + g;
+                    if v % g * 2 >= g && up < size {
+                        up
+                    } else {
+                        v - v % g
+                    }
+                };
+                let (gx, gy) = (nearest(px, w), nearest(py, h));
+                let gp = (gy * w + gx) as usize;
+                let fp = feature(p);
+                // The coarser level's members too (so that they are kept or improved).
+                if let Some(init) = q.init {
+                    for o in &init[p * want..(p + 1) * want] {
+                        if let Some(c) = ctx.candidate(px, py, px + o[0] as i32, py + o[1] as i32) {
+                            ctx.try_insert(fp, c, &mut best);
+                        }
+                    }
+                }
+                for &(_, c) in &grid_state[gp * want..(gp + 1) * want] {
+                    if c == NONE {
+                        continue;
+                    }
+                    let (cx, cy) = unpack(c);
+                    for (sx, sy) in [(px - gx, py - gy), (0, 0)] {
+                        if let Some(c) = ctx.candidate(px, py, cx + sx, cy + sy) {
+                            ctx.try_insert(fp, c, &mut best);
+                        }
+                    }
+                }
+                // Near the exclusion zone or the border all those can be invalid: random
+                // members then, as in the initialization, so that no set is left empty.
+                let mut t = 0;
+                while best[want - 1].1 == NONE && t < 2 * want as u32 + 2 {
+                    let r = hash(p as u32, t, seed);
+                    let (x, y) = (m + (r % vw) as i32, m + ((r / vw) % vh) as i32);
+                    if let Some(c) = ctx.candidate(px, py, x, y) {
+                        ctx.try_insert(fp, c, &mut best);
+                    }
+                    t += 1;
+                }
+                out.extend_from_slice(&best);
+            }
+            out
+        })
+        .concat();
+        step_done("grid fill");
     }
 
     if profile {
@@ -526,7 +611,8 @@ mod tests {
     fn sets_are_valid_deterministic_and_close_to_exact() {
         let (w, h, dim) = (44u32, 37u32, 16usize);
         for (tileable, light) in [(true, false), (false, false), (true, true), (false, true)] {
-            for (spacing, k) in [(1u32, 2u32), (2, 4), (8, 2), (8, 3)] {
+            // Spacing 16: the light search goes on a grid of every other pixel.
+            for (spacing, k) in [(1u32, 2u32), (2, 4), (8, 2), (8, 3), (16, 2), (16, 3)] {
                 let feats = if spacing == 1 {
                     features(w, h, dim)
                 } else {
@@ -539,7 +625,7 @@ mod tests {
                     height: h,
                     tileable,
                     margin: if tileable { 0 } else { 3 },
-                    exclusion_radius: spacing.max(4),
+                    exclusion_radius: spacing.clamp(4, 12),
                     k,
                     spacing,
                     init: None,
@@ -593,11 +679,15 @@ mod tests {
                 assert!(mean >= exact * 0.9999);
                 let what = format!("tileable {tileable} light {light} spacing {spacing} k {k}");
                 println!("{what}: mean distance {mean} vs exact {exact}");
-                // The light search trades closeness for time (large exemplars).
+                // The light search trades closeness for time (large exemplars), and more on
+                // its grid levels: this field (sinusoids and noise) is far rougher than a blurred
+                // exemplar level (a 512 px photo's grid levels measured 14-18% above the
+                // full search's mean distance).
                 let tolerance = match (spacing <= KD_MAX_SPACING, light) {
                     (true, false) => 1.1,
                     (false, false) => 1.2,
                     (true, true) => 1.25,
+                    (false, true) if spacing >= GRID_MIN_SPACING => 1.75,
                     (false, true) => 1.5,
                 };
                 assert!(
