@@ -26,8 +26,10 @@
 //!     f32 residual_variance                 (IEEE bits)
 //!     f32 runtime_residual_variance
 //!     8 x 32 i16 proj                       row-major
-//!     u64 n_et,      n_et x 8 i16           (n_et == width*height)
-//!     u64 n_qe,      n_qe x 8 i16           (n_qe == width*height)
+//!     u64 n_et,      n_et x 8 i16           (n_et == width*height, or 0 where no synthesis
+//!                                           corrects: level 0, or the finest level when its
+//!                                           offsets are left out; older files write them)
+//!     u64 n_qe,      n_qe x 8 i16           (n_qe == n_et)
 //!     u64 n_offsets, n_offsets x 2 i16      (n_offsets == width*height*(k-1); 0 allowed on
 //!                                           the finest level: its sets left out)
 //! u8  appearance space                      (0 = neighborhood, 1 = color)
