@@ -233,6 +233,14 @@ impl SessionBuilder {
         self
     }
 
+    /// Correction passes at the second-finest level (default: `passes`, at most 2 for
+    /// isometric synthesis from exemplars of 256x256 px and more; see
+    /// [`SynthParams::second_finest_passes`]).
+    pub fn second_finest_passes(mut self, passes: u32) -> Self {
+        self.params.second_finest_passes = Some(passes);
+        self
+    }
+
     /// Score the similarity sets on every `n`-th correction pass only (default 1; see
     /// [`SynthParams::sets_every`]).
     pub fn sets_every(mut self, n: u32) -> Self {

@@ -326,6 +326,10 @@ fn builder_windows_fit_and_setters_reach_the_parameters() {
             );
         }
     }
+    let p = build(Session::builder().second_finest_passes(3))
+        .params()
+        .clone();
+    assert_eq!(p.second_finest_passes, Some(3));
     let standalone = build(Session::builder().size(32, 24).standalone(true));
     assert!(standalone.params().standalone);
     // Out-of-range values are refused when the session is built.

@@ -102,6 +102,9 @@ fn non_tileable_k2_matches_cpu_pass_by_pass() {
         seed: 11,
         // Off by default; on here so the finest level's (projected) correction is covered.
         finest_passes: 1,
+        // Other than `passes`, as large exemplars get by default: the plan's margins and
+        // schedule follow each level's count on both sides.
+        second_finest_passes: Some(2),
         ..Default::default()
     };
     compare_pass_by_pass(analysis(false, 2), &params);
@@ -285,15 +288,24 @@ fn gpu_texture_matches_host_readback() {
 #[test]
 fn windows_agree_on_their_overlap() {
     let a = analysis(true, 2);
-    let base = SynthParams {
-        width: 40,
-        height: 40,
-        seed: 3,
-        ..Default::default()
-    };
-    let whole = synthesize_cpu(&a, &base).unwrap();
+    for second_finest_passes in [None, Some(1), Some(6)] {
+        windows_agree(
+            &a,
+            &SynthParams {
+                width: 40,
+                height: 40,
+                seed: 3,
+                second_finest_passes,
+                ..Default::default()
+            },
+        );
+    }
+}
+
+fn windows_agree(a: &texsyn::Analysis, base: &SynthParams) {
+    let whole = synthesize_cpu(a, base).unwrap();
     let part = synthesize_cpu(
-        &a,
+        a,
         &SynthParams {
             width: 20,
             height: 25,
@@ -307,7 +319,8 @@ fn windows_agree_on_their_overlap() {
             assert_eq!(
                 part.coords[y * 20 + x],
                 whole.coords[(y + 9) * 40 + x + 13],
-                "pixel ({x},{y}) of the window"
+                "pixel ({x},{y}) of the window, {:?} second-finest passes",
+                base.second_finest_passes
             );
         }
     }

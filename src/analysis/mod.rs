@@ -349,6 +349,11 @@ impl Analysis {
         self.levels.get(l).is_some_and(|l| !l.et.is_empty())
     }
 
+    /// The exemplar's width times height.
+    pub fn pixel_count(&self) -> u64 {
+        self.width as u64 * self.height as u64
+    }
+
     /// Where level `l`'s `et` and `qe` entries start in the tables of all levels
     /// concatenated (levels without tables take no room).
     pub fn table_base(&self, l: usize) -> usize {
