@@ -437,8 +437,8 @@ pub fn similarity_offsets(
     }
 
     if g > 1 {
-        // Every pixel off the grid: its grid pixel's members, shifted by the distance to
-        // it or not, whichever are nearer.
+        // Every pixel off the grid: the nearest grid pixel's members, shifted by the
+        // distance to it or not, whichever are nearer.
         let grid_state = &state;
         state = par_ranges(n, threads, |range| {
             let mut out = Vec::with_capacity(range.len() * want);

@@ -196,10 +196,7 @@ impl KdTree {
         let n = points.len() / dim;
         assert!(n < u32::MAX as usize, "KdTree::build: too many points");
         let mut perm: Vec<u32> = (0..n as u32).collect();
-        let threads = match threads {
-            0 => std::thread::available_parallelism().map_or(1, |t| t.get()),
-            t => t,
-        };
+        let threads = super::resolve_threads(threads);
         // Subtrees split over the threads: 2^depth of them at once.
         let depth = threads.next_power_of_two().trailing_zeros().min(4);
         let nodes = build_tree(&points, dim, &mut perm, 0, depth);

@@ -397,6 +397,17 @@ pub fn check_exemplar_size(width: u32, height: u32) -> Result<()> {
     Ok(())
 }
 
+/// A thread count where 0 means all cores.
+pub(crate) fn resolve_threads(threads: usize) -> usize {
+    if threads == 0 {
+        std::thread::available_parallelism()
+            .map(|t| t.get())
+            .unwrap_or(1)
+    } else {
+        threads
+    }
+}
+
 /// Runs `f` over `0..n` split into chunks on `threads` workers (0 = all cores) and
 /// returns the chunk results in order. Chunks are handed out dynamically so uneven work
 /// balances. The chunks depend on `n` only (at most 64 of them), so neither the results
@@ -406,13 +417,7 @@ pub fn par_ranges<T: Send>(
     threads: usize,
     f: impl Fn(std::ops::Range<usize>) -> T + Sync,
 ) -> Vec<T> {
-    let threads = if threads == 0 {
-        std::thread::available_parallelism()
-            .map(|t| t.get())
-            .unwrap_or(1)
-    } else {
-        threads
-    };
+    let threads = resolve_threads(threads);
     let chunk = n.div_ceil(64).max(1);
     let chunks = n.div_ceil(chunk).max(1);
     if threads <= 1 || chunks <= 1 {
@@ -476,13 +481,7 @@ pub fn par_fill<T: Send>(
         let len = part.len() / per_item.max(1);
         f(start..start + len, part);
     };
-    let threads = if threads == 0 {
-        std::thread::available_parallelism()
-            .map(|t| t.get())
-            .unwrap_or(1)
-    } else {
-        threads
-    };
+    let threads = resolve_threads(threads);
     let workers = threads.min(n.div_ceil(chunk).max(1));
     if workers <= 1 {
         work();
