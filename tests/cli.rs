@@ -495,6 +495,12 @@ fn bad_inputs_fail_cleanly() {
     synth(GRAVEL, &["--passes", "17"], 2, "--passes");
     synth(
         GRAVEL,
+        &["--second-finest-passes", "17"],
+        2,
+        "--second-finest-passes",
+    );
+    synth(
+        GRAVEL,
         &["--tileable", "--no-tileable"],
         2,
         "cannot be used with",
