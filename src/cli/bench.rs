@@ -236,22 +236,13 @@ pub fn run(ui: &Ui, args: BenchArgs) -> CliResult<()> {
     ui.out(format!(
         "synthesis: {} passes ({} at the second-finest level, {} at the finest), similarity sets every {}, {:?} distance, {}, seed {}; {} warm-up + {} timed runs per size; GPU = submit + wait, no read-back",
         args.passes,
-        texsyn::passes::plan::passes_at(
-            &SynthParams {
-                passes: args.passes,
-                second_finest_passes: args.second_finest_passes,
-                field: (args.field.is_some() || file_field.is_some())
-                    .then_some(texsyn::Field::Constant {
-                        angle: 0.0,
-                        scale: [1.0, 1.0],
-                        shear: 0.0,
-                    }),
-                ..SynthParams::default()
-            },
-            1,
-            2,
-            synthesizer.analysis().pixel_count(),
-        ),
+        args.second_finest_passes.unwrap_or_else(|| {
+            texsyn::passes::plan::default_second_finest_passes(
+                args.passes,
+                args.field.is_some() || file_field.is_some(),
+                synthesizer.analysis().pixel_count(),
+            )
+        }),
         args.finest_passes,
         args.sets_every,
         args.distance,

@@ -954,14 +954,20 @@ pub fn passes_at(params: &SynthParams, level: u32, last: u32, exemplar_pixels: u
         return params.finest_passes;
     }
     if level + 1 == last {
-        let large = exemplar_pixels >= crate::analysis::LARGE_EXEMPLAR_PIXELS;
-        return match params.second_finest_passes {
-            Some(p) => p,
-            None if large && !params.anisometric() => params.passes.min(LARGE_SECOND_FINEST_PASSES),
-            None => params.passes,
-        };
+        return params.second_finest_passes.unwrap_or_else(|| {
+            default_second_finest_passes(params.passes, params.anisometric(), exemplar_pixels)
+        });
     }
     params.passes
+}
+
+/// The second-finest level's passes when [`SynthParams::second_finest_passes`] is `None`.
+pub fn default_second_finest_passes(passes: u32, anisometric: bool, exemplar_pixels: u64) -> u32 {
+    if !anisometric && exemplar_pixels >= crate::analysis::LARGE_EXEMPLAR_PIXELS {
+        passes.min(LARGE_SECOND_FINEST_PASSES)
+    } else {
+        passes
+    }
 }
 
 #[cfg(test)]
