@@ -61,9 +61,10 @@ fn instance_flags() -> wgpu::InstanceFlags {
 /// Cloning is cheap (wgpu handles are reference counted) and shares the device.
 #[derive(Clone, Debug)]
 pub struct GpuContext {
-    /// The logical device. It was created with no optional features and, by
-    /// [`headless`](Self::headless) / [`with_options`](Self::with_options), with the
-    /// adapter's own limits (see [`limits`](Self::limits)).
+    /// The logical device. [`headless`](Self::headless) / [`with_options`](Self::with_options)
+    /// create it with the adapter's own limits (see [`limits`](Self::limits)) and no
+    /// optional features, except `MAPPABLE_PRIMARY_BUFFERS` on a CPU device (lavapipe),
+    /// where it saves a copy of the analysis tables on upload. Nothing requires it.
     pub device: wgpu::Device,
     /// The device's queue.
     pub queue: wgpu::Queue,
@@ -135,12 +136,23 @@ impl GpuContext {
     }
 
     /// Create the device on `adapter` with the adapter's own limits and no optional
-    /// features.
+    /// features but mappable storage buffers on a CPU device.
     fn from_adapter(adapter: &wgpu::Adapter) -> Result<Self> {
         let info = adapter.get_info();
+        // On a CPU device (lavapipe) every buffer lives in host memory anyway: storage
+        // buffers that can be mapped take the analysis tables without wgpu's staging copy
+        // (see `GpuSynthesizer::new`). Not asked of GPUs, where mappable storage is slow.
+        let mappable = wgpu::Features::MAPPABLE_PRIMARY_BUFFERS;
+        let required_features = if info.device_type == wgpu::DeviceType::Cpu
+            && adapter.features().contains(mappable)
+        {
+            mappable
+        } else {
+            wgpu::Features::empty()
+        };
         let descriptor = wgpu::DeviceDescriptor {
             label: Some("texsyn"),
-            required_features: wgpu::Features::empty(),
+            required_features,
             // The adapter's real limits rather than the WebGPU defaults, so large
             // storage buffers and textures are allowed where the hardware allows them.
             required_limits: adapter.limits(),

@@ -680,13 +680,24 @@ impl GpuSynthesizer {
             // level after level: no concatenated copy on the host. Each copy of fresh
             // memory costs its page faults, which on a CPU device were most of the upload
             // (a 400 px exemplar's 55 MB of tables).
+            // Where the device can map storage buffers (a CPU device, see
+            // `GpuContext::headless`), the tables are written in place: wgpu otherwise
+            // writes them to a staging buffer and copies, twice the memory touched.
+            let table_usage = if device
+                .features()
+                .contains(wgpu::Features::MAPPABLE_PRIMARY_BUFFERS)
+            {
+                wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::MAP_WRITE
+            } else {
+                wgpu::BufferUsages::STORAGE
+            };
             let levels_buffer = |label: &str, part: &dyn Fn(&LevelData) -> &[u8]| {
                 let len: usize = a.levels.iter().map(|l| part(l).len()).sum();
                 let size = len.max(16).next_multiple_of(4);
                 let buffer = device.create_buffer(&wgpu::BufferDescriptor {
                     label: Some(label),
                     size: size as u64,
-                    usage: wgpu::BufferUsages::STORAGE,
+                    usage: table_usage,
                     mapped_at_creation: true,
                 });
                 {
