@@ -940,12 +940,33 @@ pub fn verbatim_stats(
     ex_h: u32,
     tileable: bool,
 ) -> Result<VerbatimStats> {
+    verbatim_stats_at_spacing(coords, out_w, out_h, ex_w, ex_h, tileable, 1)
+}
+
+/// [`verbatim_stats`] of a coarser synthesis level, whose pixels step `spacing`
+/// exemplar pixels (`h_l`): a pair `(p, p + e)` is coherent when `coords[p + e] ==
+/// coords[p] + spacing * e`, and each pixel counts as `spacing^2` exemplar pixels in
+/// `largest_region_fraction` (`largest_region_pixels` stays in this level's pixels).
+/// When the finer levels only upsample, their regions are these regions, enlarged.
+pub fn verbatim_stats_at_spacing(
+    coords: &[[i32; 2]],
+    out_w: u32,
+    out_h: u32,
+    ex_w: u32,
+    ex_h: u32,
+    tileable: bool,
+    spacing: u32,
+) -> Result<VerbatimStats> {
     check_coord_map(coords, out_w, out_h, ex_w, ex_h)?;
+    if spacing == 0 {
+        return Err(invalid("a level's spacing must be at least 1"));
+    }
     let (w, h) = (out_w as usize, out_h as usize);
     // In 64 bits, so that no coordinate can overflow.
     let (ew, eh) = (ex_w as i64, ex_h as i64);
+    let step = spacing as i64;
     let coherent = |a: [i32; 2], b: [i32; 2], e: [i64; 2]| {
-        let (tx, ty) = (a[0] as i64 + e[0], a[1] as i64 + e[1]);
+        let (tx, ty) = (a[0] as i64 + step * e[0], a[1] as i64 + step * e[1]);
         let (bx, by) = (b[0] as i64, b[1] as i64);
         if tileable {
             tx.rem_euclid(ew) == bx.rem_euclid(ew) && ty.rem_euclid(eh) == by.rem_euclid(eh)
@@ -989,7 +1010,8 @@ pub fn verbatim_stats(
         } else {
             good as f64 / pairs as f64
         },
-        largest_region_fraction: largest as f64 / (ex_w as f64 * ex_h as f64),
+        largest_region_fraction: largest as f64 * (step * step) as f64
+            / (ex_w as f64 * ex_h as f64),
         largest_region_pixels: largest,
         regions,
     })
@@ -1491,6 +1513,70 @@ pub fn shuffled_baseline(exemplar: &FloatImage, width: u32, height: u32, seed: u
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_coarse_level_copies_what_its_upsampled_level_copies() {
+        // A 24x20 map at spacing 4 of a 64x64 exemplar: random coordinates, with two
+        // coherent blocks (one wrapping around the exemplar's edge).
+        let (w, h, ex, step) = (24usize, 20usize, 64i32, 4i32);
+        let mut seed = 7u32;
+        let mut rnd = || {
+            seed = seed.wrapping_mul(1664525).wrapping_add(1013904223);
+            (seed >> 8) as i32
+        };
+        // Odd x: never coherent with the blocks' even x (steps keep the parity).
+        let mut coarse: Vec<[i32; 2]> = (0..w * h)
+            .map(|_| [2 * (rnd() % 32) + 1, rnd() % ex])
+            .collect();
+        for y in 2..9 {
+            for x in 3..15 {
+                coarse[y * w + x] = [8 + step * (x as i32 - 3), 4 + step * (y as i32 - 2)];
+            }
+        }
+        for y in 12..17 {
+            for x in 10..20 {
+                let wrap = |v: i32| v.rem_euclid(ex);
+                coarse[y * w + x] = [
+                    wrap(50 + step * (x as i32 - 10)),
+                    20 + step * (y as i32 - 12),
+                ];
+            }
+        }
+        // Upsampled to spacing 2 (children `S[p] + 2 o`), as the finest level is.
+        let fine: Vec<[i32; 2]> = (0..4 * w * h)
+            .map(|i| {
+                let (x, y) = (i % (2 * w), i / (2 * w));
+                let p = coarse[(y / 2) * w + x / 2];
+                let wrap = |v: i32| v.rem_euclid(ex);
+                [
+                    wrap(p[0] + 2 * (x % 2) as i32),
+                    wrap(p[1] + 2 * (y % 2) as i32),
+                ]
+            })
+            .collect();
+        for tileable in [false, true] {
+            let c = verbatim_stats_at_spacing(&coarse, w as u32, h as u32, 64, 64, tileable, 4)
+                .unwrap();
+            let f =
+                verbatim_stats_at_spacing(&fine, 2 * w as u32, 2 * h as u32, 64, 64, tileable, 2)
+                    .unwrap();
+            assert_eq!(
+                c.largest_region_fraction, f.largest_region_fraction,
+                "{tileable}"
+            );
+            assert_eq!(4 * c.largest_region_pixels, f.largest_region_pixels);
+            assert_eq!(c.largest_region_pixels, 12 * 7, "{tileable}");
+            assert_eq!(c.largest_region_fraction, (12 * 7 * 16) as f64 / 4096.0);
+        }
+        // Spacing 1 is verbatim_stats.
+        assert_eq!(
+            verbatim_stats_at_spacing(&fine, 2 * w as u32, 2 * h as u32, 64, 64, true, 1).unwrap(),
+            verbatim_stats(&fine, 2 * w as u32, 2 * h as u32, 64, 64, true).unwrap()
+        );
+        assert!(
+            verbatim_stats_at_spacing(&fine, 2 * w as u32, 2 * h as u32, 64, 64, true, 0).is_err()
+        );
+    }
 
     #[test]
     fn fragment_fraction_counts_small_8_connected_pieces() {

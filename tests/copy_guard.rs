@@ -5,8 +5,9 @@
 
 use std::sync::Arc;
 
-use texsyn::gpu::copy_guard::{COPY_PROBE_SIZE, GUARD_MIN_SIDE, GUARD_TIERS};
-use texsyn::quality::verbatim_stats;
+use texsyn::gpu::copy_guard::{Probe, COPY_PROBE_SIZE, EARLY_CHECKS, GUARD_MIN_SIDE, GUARD_TIERS};
+use texsyn::passes::SynthPlan;
+use texsyn::quality::{verbatim_stats, verbatim_stats_at_spacing};
 use texsyn::{Analysis, AnalysisOptions, GpuContext, GpuSynthesizer, Session, SynthParams};
 
 /// The bundled gravel (128 px) enlarged to `side`, analysed.
@@ -15,6 +16,70 @@ fn gravel_analysis(side: u32) -> Analysis {
     let img = img.resize_exact(side, side, image::imageops::FilterType::Triangle);
     let ex = texsyn::image_io::exemplar_from_image(&img).unwrap();
     texsyn::analysis::analyze(&ex, &AnalysisOptions::default(), |_| {}).unwrap()
+}
+
+/// The largest verbatim copy of `output`'s window with `extra` more still levels at the
+/// level `up` levels above the finest, from the GPU's own coordinates at that level,
+/// and that level's spacing.
+fn coarse_copy(
+    syn: &GpuSynthesizer,
+    ctx: &GpuContext,
+    output: &SynthParams,
+    extra: u32,
+    up: u32,
+) -> (f64, u32) {
+    let a = syn.analysis();
+    let p = SynthParams {
+        extra_still_levels: extra,
+        ..output.clone()
+    };
+    let plan = SynthPlan::new(a, &p).unwrap();
+    let schedule = plan.schedule(a);
+    let l = plan.levels.len() - 1 - up as usize;
+    let end = schedule.iter().rposition(|d| d.level == l).unwrap() + 1;
+    let all = syn.run_prefix(ctx, &p, end).unwrap();
+    let lp = &plan.levels[l];
+    // The window at the origin, 1/2^up of the output's side there.
+    let side = (output.width >> up) as usize;
+    assert_eq!(output.origin, [0, 0]);
+    let (x0, y0) = (-lp.origin[0] as usize, -lp.origin[1] as usize);
+    let mut window = Vec::new();
+    for y in 0..side {
+        let row = lp.coord_base as usize + (y0 + y) * lp.size[0] as usize + x0;
+        window.extend_from_slice(&all[row..row + side]);
+    }
+    let c = verbatim_stats_at_spacing(
+        &window,
+        side as u32,
+        side as u32,
+        a.width,
+        a.height,
+        a.tileable,
+        lp.spacing,
+    )
+    .unwrap()
+    .largest_region_fraction;
+    (c, lp.spacing)
+}
+
+/// The probe the guard should record for a tier under `budget`: given up at the first
+/// early check whose coarse copy exceeds the budget by more than its margin, else
+/// measured on the output (`full`).
+fn expected_probe(coarse: &[(f64, u32)], full: f64, extra: u32, budget: f32) -> Probe {
+    for (&(_, margin), &(copy, spacing)) in EARLY_CHECKS.iter().zip(coarse) {
+        if copy > budget as f64 + margin {
+            return Probe {
+                extra_still_levels: extra,
+                copy,
+                spacing,
+            };
+        }
+    }
+    Probe {
+        extra_still_levels: extra,
+        copy: full,
+        spacing: 1,
+    }
 }
 
 #[test]
@@ -47,8 +112,19 @@ fn the_guard_keeps_the_stillest_schedule_within_its_budget() {
     assert_ne!(tiers[0].2.coords, plain.coords);
     assert_ne!(tiers[1].2.coords, plain.coords);
 
+    let coarse: Vec<Vec<(f64, u32)>> = GUARD_TIERS
+        .iter()
+        .map(|&e| {
+            EARLY_CHECKS
+                .iter()
+                .map(|&(up, _)| coarse_copy(&syn, &ctx, &output, e, up))
+                .collect()
+        })
+        .collect();
+
     // Budgets at, just under and above each probe's copy: the first tier within the
-    // budget is kept (its probe is the result), the default if none is.
+    // budget is kept (its probe is the result), the default if none is. A probe far
+    // over the budget is given up at a coarser level (the early checks).
     let mut budgets = vec![1.0f32];
     for (_, c, _) in &tiers {
         budgets.push(*c as f32);
@@ -56,16 +132,16 @@ fn the_guard_keeps_the_stillest_schedule_within_its_budget() {
     }
     for b in budgets {
         let choice = syn.choose_schedule(&ctx, &output, b).unwrap();
-        let kept = tiers.iter().position(|(_, c, _)| *c <= b as f64);
+        let probes: Vec<Probe> = tiers
+            .iter()
+            .zip(&coarse)
+            .map(|((e, c, _), coarse)| expected_probe(coarse, *c, *e, b))
+            .collect();
+        let kept = probes
+            .iter()
+            .position(|p| p.spacing == 1 && p.copy <= b as f64);
         let probed = kept.map_or(tiers.len(), |i| i + 1);
-        assert_eq!(
-            choice.probes,
-            tiers[..probed]
-                .iter()
-                .map(|(e, c, _)| (*e, *c))
-                .collect::<Vec<_>>(),
-            "budget {b}"
-        );
+        assert_eq!(choice.probes, probes[..probed], "budget {b}");
         match kept {
             Some(i) => {
                 assert_eq!(choice.params, with_extra(tiers[i].0), "budget {b}");
@@ -90,7 +166,14 @@ fn the_guard_keeps_the_stillest_schedule_within_its_budget() {
     };
     let w = syn.choose_schedule(&ctx, &window, 1.0).unwrap();
     assert_eq!(w.params.extra_still_levels, GUARD_TIERS[0]);
-    assert_eq!(w.probes, vec![(tiers[0].0, tiers[0].1)]);
+    assert_eq!(
+        w.probes,
+        vec![Probe {
+            extra_still_levels: tiers[0].0,
+            copy: tiers[0].1,
+            spacing: 1
+        }]
+    );
     assert!(w.result.is_none());
     let piece = syn.synthesize_to_host(&ctx, &w.params).unwrap();
     let whole = syn
@@ -141,6 +224,50 @@ fn the_guard_keeps_the_stillest_schedule_within_its_budget() {
         ..output.clone()
     };
     assert!(syn.choose_schedule(&ctx, &zero, 0.25).is_err());
+    ctx.take_uncaptured_errors().expect("no wgpu errors");
+}
+
+#[test]
+fn a_probe_far_over_the_budget_is_given_up_at_a_coarser_level() {
+    let ctx = GpuContext::headless().expect("a device");
+    let syn = GpuSynthesizer::new(&ctx, Arc::new(gravel_analysis(GUARD_MIN_SIDE))).unwrap();
+    let output = SynthParams {
+        width: COPY_PROBE_SIZE,
+        height: COPY_PROBE_SIZE,
+        seed: 5,
+        ..Default::default()
+    };
+    let (up, margin) = EARLY_CHECKS[0];
+    let coarse: Vec<(f64, u32)> = GUARD_TIERS
+        .iter()
+        .map(|&e| coarse_copy(&syn, &ctx, &output, e, up))
+        .collect();
+    // A budget every tier's coarse copy exceeds by more than the margin: each probe
+    // is given up at that level, and the default schedule stays.
+    let low = (coarse.iter().map(|c| c.0).fold(f64::MAX, f64::min) - margin) as f32 * 0.9;
+    assert!(low > 0.0, "{coarse:?}");
+    let choice = syn.choose_schedule(&ctx, &output, low).unwrap();
+    assert_eq!(choice.params, output);
+    assert!(choice.result.is_none());
+    let expected: Vec<Probe> = GUARD_TIERS
+        .iter()
+        .zip(&coarse)
+        .map(|(&e, &(copy, spacing))| Probe {
+            extra_still_levels: e,
+            copy,
+            spacing,
+        })
+        .collect();
+    assert_eq!(choice.probes, expected);
+    assert_eq!(coarse[0].1, 1 << up);
+    assert!(
+        choice.describe(low).contains("given up"),
+        "{}",
+        choice.describe(low)
+    );
+
+    // (The first test covers a probe given up two levels above the finest, and a
+    // staged probe's result against a plain synthesis.)
     ctx.take_uncaptured_errors().expect("no wgpu errors");
 }
 

@@ -143,13 +143,12 @@ impl GpuContext {
         // buffers that can be mapped take the analysis tables without wgpu's staging copy
         // (see `GpuSynthesizer::new`). Not asked of GPUs, where mappable storage is slow.
         let mappable = wgpu::Features::MAPPABLE_PRIMARY_BUFFERS;
-        let required_features = if info.device_type == wgpu::DeviceType::Cpu
-            && adapter.features().contains(mappable)
-        {
-            mappable
-        } else {
-            wgpu::Features::empty()
-        };
+        let required_features =
+            if info.device_type == wgpu::DeviceType::Cpu && adapter.features().contains(mappable) {
+                mappable
+            } else {
+                wgpu::Features::empty()
+            };
         let descriptor = wgpu::DeviceDescriptor {
             label: Some("texsyn"),
             required_features,

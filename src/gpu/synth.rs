@@ -1244,7 +1244,7 @@ impl GpuSynthesizer {
         params: &SynthParams,
         maps: &[ExtraMap],
     ) -> Result<(Synthesis, Vec<Vec<[u8; 4]>>)> {
-        let (s, _, m) = self.synthesize_maps_inner(ctx, params, maps, None)?;
+        let (s, _, m) = self.synthesize_maps_inner(ctx, params, maps, None, None)?;
         Ok((s, m))
     }
 
@@ -1384,8 +1384,13 @@ impl GpuSynthesizer {
         maps: &[ExtraMap],
     ) -> Result<MagnifiedSynthesis> {
         self.check_magnify(ctx, params, (hi, hi_width, hi_height), factor)?;
-        let (synthesis, colors, maps) =
-            self.synthesize_maps_inner(ctx, params, maps, Some((hi, hi_width, hi_height, factor)))?;
+        let (synthesis, colors, maps) = self.synthesize_maps_inner(
+            ctx,
+            params,
+            maps,
+            Some((hi, hi_width, hi_height, factor)),
+            None,
+        )?;
         Ok(MagnifiedSynthesis {
             width: params.width * factor,
             height: params.height * factor,
@@ -1449,6 +1454,7 @@ impl GpuSynthesizer {
         params: &SynthParams,
         maps: &[ExtraMap],
         magnify: Option<(&[[u8; 4]], u32, u32, u32)>,
+        resume: Option<(&wgpu::Buffer, usize)>,
     ) -> Result<(Synthesis, Option<Vec<[u8; 4]>>, Vec<Vec<[u8; 4]>>)> {
         let a = &self.analysis;
         let (map_w, map_h, f) = match magnify {
@@ -1541,7 +1547,23 @@ impl GpuSynthesizer {
             })
             .collect();
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
-        let coords = self.record_reporting(ctx, &mut encoder, &plan, &schedule, &view, &targets)?;
+        let coords = match resume {
+            // The rest of a schedule whose first dispatches already ran on `coords`.
+            Some((coords, start)) => ctx.scoped(|| {
+                self.record_with(
+                    ctx,
+                    &mut encoder,
+                    &plan,
+                    &schedule[start.min(schedule.len())..],
+                    &view,
+                    false,
+                    &targets,
+                    Some((coords, &self.no_velocity)),
+                );
+                coords.clone()
+            })?,
+            None => self.record_reporting(ctx, &mut encoder, &plan, &schedule, &view, &targets)?,
+        };
         let fin = plan.levels.last().unwrap();
         let fin_bytes = fin.size[0] as u64 * fin.size[1] as u64 * 8;
         let pitch =
@@ -1746,6 +1768,127 @@ impl GpuSynthesizer {
         Ok(out)
     }
 
+    /// The copy guard's probe ([`crate::gpu::copy_guard`]), synthesized in stages: at
+    /// each checkpoint `(up, limit)` (the level `up` levels above the finest, coarsest
+    /// first) the synthesis so far is read back and the largest verbatim copy of the
+    /// output's window at that level is measured
+    /// ([`crate::quality::verbatim_stats_at_spacing`]); above `limit` the probe stops
+    /// there. Otherwise it finishes and its copy is measured on the output. The stages
+    /// run on a coordinate buffer of their own (another synthesis on this synthesizer
+    /// between two submissions must not overwrite them) and give the bytes of one
+    /// [`Self::synthesize_to_host`].
+    pub(crate) fn synthesize_probe(
+        &self,
+        ctx: &GpuContext,
+        params: &SynthParams,
+        checkpoints: &[(u32, f64)],
+    ) -> Result<ProbeRun> {
+        let a = &*self.analysis;
+        let plan = SynthPlan::new(a, params)?;
+        self.check_output(ctx, &plan)?;
+        let schedule = plan.schedule(a);
+        let last = plan.levels.len() - 1;
+        let (coords, texture) = ctx.scoped(|| {
+            let coords = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("texsyn probe coords"),
+                size: (plan.coord_count * 8).max(16),
+                usage: wgpu::BufferUsages::STORAGE
+                    | wgpu::BufferUsages::COPY_SRC
+                    | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            // The checkpoints' stages write no colours (the gather is the last dispatch).
+            (coords, self.output_texture(ctx, 1, 1))
+        })?;
+        let view = texture.create_view(&Default::default());
+        let mut start = 0;
+        for &(up, limit) in checkpoints {
+            if up == 0 || up as usize > last {
+                continue;
+            }
+            let l = last - up as usize;
+            let end = match schedule.iter().rposition(|d| d.level == l) {
+                Some(i) if i + 1 > start => i + 1,
+                _ => continue,
+            };
+            // The output's window at level `l`, as the plan derives the regions.
+            let (mut lo, mut hi) = (
+                params.origin,
+                [
+                    params.origin[0] + params.width as i32,
+                    params.origin[1] + params.height as i32,
+                ],
+            );
+            for _ in 0..up {
+                lo = [lo[0].div_euclid(2), lo[1].div_euclid(2)];
+                hi = [(hi[0] - 1).div_euclid(2) + 1, (hi[1] - 1).div_euclid(2) + 1];
+            }
+            let lp = &plan.levels[l];
+            let x0 = (lo[0] - lp.origin[0]) as usize;
+            let y0 = (lo[1] - lp.origin[1]) as usize;
+            let (w, h) = ((hi[0] - lo[0]) as usize, (hi[1] - lo[1]) as usize);
+            let level_bytes = lp.size[0] as u64 * lp.size[1] as u64 * 8;
+            let mut encoder = ctx.device.create_command_encoder(&Default::default());
+            let readback = ctx.scoped(|| {
+                self.record_with(
+                    ctx,
+                    &mut encoder,
+                    &plan,
+                    &schedule[start..end],
+                    &view,
+                    false,
+                    &[],
+                    Some((&coords, &self.no_velocity)),
+                );
+                let rb = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("texsyn probe readback"),
+                    size: level_bytes.max(16),
+                    usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                });
+                encoder.copy_buffer_to_buffer(
+                    &coords,
+                    lp.coord_base as u64 * 8,
+                    &rb,
+                    0,
+                    level_bytes,
+                );
+                ctx.queue.submit([encoder.finish()]);
+                rb
+            })?;
+            start = end;
+            let bytes = read_buffer(ctx, &readback)?;
+            let level: &[[i32; 2]] = bytemuck::cast_slice(&bytes[..level_bytes as usize]);
+            let mut window = Vec::with_capacity(w * h);
+            for y in 0..h {
+                let row = (y0 + y) * lp.size[0] as usize + x0;
+                window.extend_from_slice(&level[row..row + w]);
+            }
+            let copy = crate::quality::verbatim_stats_at_spacing(
+                &window, w as u32, h as u32, a.width, a.height, a.tileable, lp.spacing,
+            )?
+            .largest_region_fraction;
+            if copy > limit {
+                return Ok(ProbeRun::Stopped {
+                    copy,
+                    spacing: lp.spacing,
+                });
+            }
+        }
+        let (synthesis, _, _) =
+            self.synthesize_maps_inner(ctx, params, &[], None, Some((&coords, start)))?;
+        let copy = crate::quality::verbatim_stats(
+            &synthesis.coords,
+            synthesis.width,
+            synthesis.height,
+            a.width,
+            a.height,
+            a.tileable,
+        )?
+        .largest_region_fraction;
+        Ok(ProbeRun::Done { synthesis, copy })
+    }
+
     /// Test hook: runs only the first `count` dispatches of the schedule and returns the
     /// whole coordinate array (every level), to compare with the CPU mirror pass by pass.
     pub fn run_prefix(
@@ -1778,6 +1921,15 @@ impl GpuSynthesizer {
         let data = read_buffer(ctx, &readback)?;
         Ok(bytemuck::cast_slice(&data).to_vec())
     }
+}
+
+/// What [`GpuSynthesizer::synthesize_probe`] found.
+pub(crate) enum ProbeRun {
+    /// Stopped at a checkpoint: the largest copy measured at the level whose pixels step
+    /// `spacing` exemplar pixels was above its limit.
+    Stopped { copy: f64, spacing: u32 },
+    /// Synthesized to the end; `copy` is the output's largest verbatim copy.
+    Done { synthesis: Synthesis, copy: f64 },
 }
 
 /// Checks, before any analysis, that an exemplar of this size fits the device's
