@@ -274,3 +274,41 @@ fn pipelines_prepared_ahead_of_time() {
     }
     ctx.take_uncaptured_errors().unwrap();
 }
+
+/// A plan's pipelines built before its synthesizer exists (on a thread of their own, as
+/// the CLI does while the analysis uploads): the same result, and invalid parameters
+/// are the plan's errors.
+#[test]
+fn pipelines_of_a_plan_prepared_before_the_upload() {
+    let ctx = context();
+    let exemplar =
+        texsyn::image_io::load_exemplar(std::path::Path::new("assets/brick.png")).unwrap();
+    let analysis = std::sync::Arc::new(
+        texsyn::analysis::analyze(&exemplar, &Default::default(), |_| {}).unwrap(),
+    );
+    let params = texsyn::SynthParams {
+        width: 40,
+        height: 24,
+        seed: 4,
+        tileable_output: true,
+        ..Default::default()
+    };
+    let cold = {
+        let c = context();
+        let s = texsyn::gpu::synth::GpuSynthesizer::new(&c, analysis.clone()).unwrap();
+        s.synthesize_to_host(&c, &params).unwrap()
+    };
+    let s = std::thread::scope(|scope| {
+        let built = scope.spawn(|| ctx.prepare_synthesis(&analysis, &params));
+        let s = texsyn::gpu::synth::GpuSynthesizer::new(&ctx, analysis.clone()).unwrap();
+        built.join().unwrap().unwrap();
+        s
+    });
+    assert_eq!(s.synthesize_to_host(&ctx, &params).unwrap(), cold);
+    let bad = texsyn::SynthParams {
+        width: 0,
+        ..params.clone()
+    };
+    assert!(ctx.prepare_synthesis(&analysis, &bad).is_err());
+    ctx.take_uncaptured_errors().unwrap();
+}

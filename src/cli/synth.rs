@@ -582,18 +582,33 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
     // Validate the parameters before uploading anything.
     texsyn::passes::SynthPlan::new(&analysis, &params)?;
 
+    // The pipelines are built on another thread while the analysis uploads (both take
+    // tens of milliseconds on lavapipe; a large exemplar's upload is mostly page faults).
     let t = Instant::now();
-    let synthesizer = GpuSynthesizer::new(&ctx, Arc::new(analysis))?;
+    let analysis = Arc::new(analysis);
+    let (synthesizer, pipelines) = std::thread::scope(|scope| {
+        let pipelines = scope.spawn(|| {
+            let t = Instant::now();
+            (ctx.prepare_synthesis(&analysis, &params), t.elapsed())
+        });
+        let synthesizer = GpuSynthesizer::new(&ctx, analysis.clone());
+        (synthesizer, pipelines.join())
+    });
     let upload_time = t.elapsed();
+    let synthesizer = synthesizer?;
+    let (built, pipeline_build_time) = pipelines.map_err(|_| {
+        fail("building the GPU pipelines failed (their thread panicked)".to_string())
+    })?;
+    built?;
     // The library's check covers the whole pyramid (the one above, the finest level).
     windowed |= !args.tileable_output && args.magnify.is_none() && !synthesizer.fits(&ctx, &params);
-    // The synthesis's pipelines, built (or loaded from the driver's cache) before it, so
-    // that the summary times them apart. Windows build theirs as they go.
+    // The rest of the preparation (the pipelines are built: a field's Jacobians), before
+    // the synthesis so that the summary times them apart. Windows build theirs as they go.
     let t = Instant::now();
     if !windowed {
         synthesizer.prepare(&ctx, &params)?;
     }
-    let pipeline_time = t.elapsed();
+    let prepare_time = t.elapsed();
     // The copy guard's probe (its synthesis is the result when it is the output's).
     let t = Instant::now();
     let choice = synthesizer
@@ -821,9 +836,10 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
     }
     ui.info(format!("      device {}", fmt_duration(device_time)));
     ui.info(format!(
-        "      GPU upload {}, pipelines {}",
+        "      GPU upload {} (pipelines {} alongside), preparation {}",
         fmt_duration(upload_time),
-        fmt_duration(pipeline_time)
+        fmt_duration(pipeline_build_time),
+        fmt_duration(prepare_time)
     ));
     if let Some(g) = guard_time {
         ui.info(format!(

@@ -227,6 +227,19 @@ impl GpuContext {
         self.pass_pipelines().prepare(self, anisometric)
     }
 
+    /// Builds exactly the pipelines a synthesis of `params` from `analysis` will use,
+    /// before any [`GpuSynthesizer`](crate::GpuSynthesizer) exists: e.g. on another
+    /// thread while [`GpuSynthesizer::new`](crate::GpuSynthesizer::new) uploads the
+    /// analysis, which the CLI does (tens of milliseconds each on lavapipe). Invalid
+    /// parameters are the errors [`crate::passes::SynthPlan::new`] gives.
+    pub fn prepare_synthesis(
+        &self,
+        analysis: &crate::Analysis,
+        params: &crate::SynthParams,
+    ) -> Result<()> {
+        self.pass_pipelines().prepare_plan(self, analysis, params)
+    }
+
     /// One line about the adapter, e.g.
     /// `llvmpipe (LLVM 15.0.6, 256 bits) [Vulkan, Cpu, driver: llvmpipe Mesa 22.3.6 (LLVM 15.0.6)]`.
     pub fn describe(&self) -> String {

@@ -578,6 +578,25 @@ impl PassPipelines {
         })
     }
 
+    /// Builds the pipelines a synthesis of `params` from `analysis` uses (no synthesizer
+    /// needed: see [`GpuContext::prepare_synthesis`]).
+    pub(crate) fn prepare_plan(
+        &self,
+        ctx: &GpuContext,
+        analysis: &Analysis,
+        params: &SynthParams,
+    ) -> Result<()> {
+        let plan = SynthPlan::new(analysis, params)?;
+        let schedule = plan.schedule(analysis);
+        self.prepare_split(
+            ctx,
+            schedule
+                .iter()
+                .map(|d| (d.kind, Variant::of_dispatch(&plan, d))),
+            || Ok(()),
+        )
+    }
+
     /// Builds the pipelines of a plain 2D synthesis (isometric or anisometric).
     pub(crate) fn prepare(&self, ctx: &GpuContext, anisometric: bool) -> Result<()> {
         let kinds = if anisometric {
