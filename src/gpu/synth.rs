@@ -667,6 +667,18 @@ fn too_large(
     }
 }
 
+/// A coordinate buffer for `count` coordinates (every level of a plan).
+fn coords_buffer(ctx: &GpuContext, count: u64, label: &str) -> wgpu::Buffer {
+    ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: (count * 8).max(16),
+        usage: wgpu::BufferUsages::STORAGE
+            | wgpu::BufferUsages::COPY_SRC
+            | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
+}
+
 /// Bytes of a buffer holding `data`, never empty (WebGPU rejects 0-sized bindings).
 fn padded<T: bytemuck::Pod>(data: &[T]) -> Vec<u8> {
     let mut b = bytemuck::cast_slice(data).to_vec();
@@ -839,14 +851,7 @@ impl GpuSynthesizer {
             .as_ref()
             .is_some_and(|s| s.coord_count >= plan.coord_count);
         if !fits {
-            let coords = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("texsyn coords"),
-                size: (plan.coord_count * 8).max(16),
-                usage: wgpu::BufferUsages::STORAGE
-                    | wgpu::BufferUsages::COPY_SRC
-                    | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            });
+            let coords = coords_buffer(ctx, plan.coord_count, "texsyn coords");
             *guard = Some(Scratch {
                 coord_count: plan.coord_count,
                 coords,
@@ -1808,14 +1813,7 @@ impl GpuSynthesizer {
         let schedule = plan.schedule(a);
         let last = plan.levels.len() - 1;
         let (coords, texture) = ctx.scoped(|| {
-            let coords = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("texsyn probe coords"),
-                size: (plan.coord_count * 8).max(16),
-                usage: wgpu::BufferUsages::STORAGE
-                    | wgpu::BufferUsages::COPY_SRC
-                    | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            });
+            let coords = coords_buffer(ctx, plan.coord_count, "texsyn probe coords");
             // The checkpoints' stages write no colours (the gather is the last dispatch).
             (coords, self.output_texture(ctx, 1, 1))
         })?;
