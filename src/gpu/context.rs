@@ -237,7 +237,8 @@ impl GpuContext {
         analysis: &crate::Analysis,
         params: &crate::SynthParams,
     ) -> Result<()> {
-        self.pass_pipelines().prepare_plan(self, analysis, params)
+        self.pass_pipelines()
+            .prepare_plan(self, analysis, params, |_| Ok(()))
     }
 
     /// One line about the adapter, e.g.

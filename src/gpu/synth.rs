@@ -578,13 +578,15 @@ impl PassPipelines {
         })
     }
 
-    /// Builds the pipelines a synthesis of `params` from `analysis` uses (no synthesizer
-    /// needed: see [`GpuContext::prepare_synthesis`]).
+    /// Builds the pipelines a synthesis of `params` from `analysis` uses, running
+    /// `alongside(&plan)` meanwhile (no synthesizer needed: see
+    /// [`GpuContext::prepare_synthesis`] and [`GpuSynthesizer::prepare`]).
     pub(crate) fn prepare_plan(
         &self,
         ctx: &GpuContext,
         analysis: &Analysis,
         params: &SynthParams,
+        alongside: impl FnOnce(&SynthPlan) -> Result<()>,
     ) -> Result<()> {
         let plan = SynthPlan::new(analysis, params)?;
         let schedule = plan.schedule(analysis);
@@ -593,7 +595,7 @@ impl PassPipelines {
             schedule
                 .iter()
                 .map(|d| (d.kind, Variant::of_dispatch(&plan, d))),
-            || Ok(()),
+            || alongside(&plan),
         )
     }
 
@@ -1228,21 +1230,14 @@ impl GpuSynthesizer {
     /// follows with the same field and regions). Optional; the synthesis is the same
     /// either way.
     pub fn prepare(&self, ctx: &GpuContext, params: &SynthParams) -> Result<()> {
-        let plan = SynthPlan::new(&self.analysis, params)?;
-        let schedule = plan.schedule(&self.analysis);
-        self.pipelines.prepare_split(
-            ctx,
-            schedule
-                .iter()
-                .map(|d| (d.kind, Variant::of_dispatch(&plan, d))),
-            // The Jacobian field (20-30 ms at 512x512 on the host), which the synthesis
-            // then finds in its cache.
-            || {
+        // The Jacobian field (20-30 ms at 512x512 on the host) alongside, which the
+        // synthesis then finds in its cache.
+        self.pipelines
+            .prepare_plan(ctx, &self.analysis, params, |plan| {
                 ctx.scoped(|| {
-                    self.jacobian_buffers(ctx, &plan);
+                    self.jacobian_buffers(ctx, plan);
                 })
-            },
-        )
+            })
     }
 
     /// Synthesizes and submits; returns when the GPU has finished.
