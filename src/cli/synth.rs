@@ -883,6 +883,7 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
             ui.info(format!("      write {}", fmt_duration(write)));
         }
     }
+    super::leave_to_exit((synthesizer, ctx));
     Ok(())
 }
 
