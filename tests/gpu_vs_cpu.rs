@@ -694,3 +694,74 @@ fn windows_assemble_into_the_whole_output() {
         .synthesize_in_windows(ctx(), &periodic, &[], |_, _| {})
         .is_err());
 }
+
+/// The GPU correction skips pixels whose 3x3 neighbourhood has not changed since their
+/// class's previous subpass (`PassParams::clean_before`); the CPU mirror computes every
+/// pixel. After every correction subpass past the first pass the two pyramids must be
+/// the same, with the still schedules the copy guard picks (long coherent runs: most
+/// skips) and the default one, on the bundled exemplar and on a tileable crop (k = 3).
+#[test]
+fn skipped_pixels_leave_every_subpass_as_the_cpu_computes() {
+    let full = Arc::new(
+        analyze(
+            &texsyn::image_io::load_exemplar(std::path::Path::new("assets/gravel.png")).unwrap(),
+            &AnalysisOptions::default(),
+            |_| {},
+        )
+        .unwrap(),
+    );
+    let cases = [
+        (full.clone(), 2, 72, 1, 4),
+        (full, 0, 96, 3, 8),
+        (analysis(true, 3), 1, 64, 5, 8),
+        (analysis(false, 4), 0, 64, 2, 8),
+    ];
+    for (a, extra, size, seed, passes) in cases {
+        let params = SynthParams {
+            width: size,
+            height: size + 8,
+            origin: [-7, 30],
+            seed,
+            extra_still_levels: extra,
+            passes,
+            ..Default::default()
+        };
+        let gpu = GpuSynthesizer::new(ctx(), a.clone()).unwrap();
+        let plan = SynthPlan::new(&a, &params).unwrap();
+        let schedule = plan.schedule(&a);
+        // The schedule does skip: later passes of a level name their class's previous
+        // subpass, first passes nothing.
+        let skipping = schedule
+            .iter()
+            .filter(|d| d.kind == PassKind::Correct && d.params.clean_before > 0)
+            .count();
+        let corrections = schedule.iter().filter(|d| d.kind == PassKind::Correct).count();
+        assert!(skipping * 2 >= corrections, "{skipping} of {corrections} subpasses skip");
+        let mut cpu = vec![[0i32; 2]; plan.coord_count as usize];
+        let jac = plan.jacobians();
+        let mut compared = 0;
+        for (i, d) in schedule.iter().enumerate() {
+            run_cpu(&a, &schedule[i..i + 1], &mut cpu, &jac);
+            // Every level's last subpass.
+            let level_end = schedule.get(i + 1).is_none_or(|n| n.level != d.level);
+            if d.kind != PassKind::Correct || !level_end {
+                continue;
+            }
+            let g = gpu.run_prefix(ctx(), &params, i + 1).unwrap();
+            let diff = g.iter().zip(&cpu).filter(|(x, y)| x != y).count();
+            assert_eq!(
+                diff, 0,
+                "extra still levels {extra}, {size} px, dispatch {i} (level {}, stamp {}, \
+                 clean before {}): {diff} coordinates differ",
+                d.level, d.params.stamp, d.params.clean_before
+            );
+            compared += 1;
+        }
+        assert!(compared >= 5);
+        // And the whole synthesis, colours included.
+        assert_eq!(
+            gpu.synthesize_to_host(ctx(), &params).unwrap(),
+            synthesize_cpu(&a, &params).unwrap()
+        );
+    }
+}

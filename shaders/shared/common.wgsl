@@ -56,8 +56,10 @@ struct Params {
     inset: i32,
     kset_interp: u32,
     quarter: u32,
-    _pad11: u32,
-    _pad12: u32,
+    // Isometric correction: this subpass's stamp, and the stamps below which a pixel's
+    // 3x3 neighbourhood counts as unchanged since its previous subpass (0: none does).
+    stamp: u32,
+    clean_before: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: Params;

@@ -158,7 +158,7 @@ pub struct MagnifiedSynthesis {
 /// The coordinate pyramid, kept between calls of the same or smaller size. Sharing it
 /// is safe even for several syntheses recorded into one encoder: they run in order.
 struct Scratch {
-    coord_count: u64,
+    entries: u64,
     coords: wgpu::Buffer,
 }
 
@@ -810,9 +810,13 @@ impl GpuSynthesizer {
                 "synthesize it in windows (SynthParams::origin) and assemble them",
             ));
         }
-        // Coordinates (8 bytes per pixel of every level), or the Jacobians (16 bytes).
-        let per_pixel = if p.anisometric() { 16 } else { 8 };
-        let bytes = plan.coord_count * per_pixel;
+        // Coordinates (8 bytes per pixel of every level, then the flag region), or the
+        // Jacobians (16 bytes per pixel of every level).
+        let bytes = if p.anisometric() {
+            plan.coord_count * 16
+        } else {
+            plan.coord_buffer_len() * 8
+        };
         let max = limits
             .max_storage_buffer_binding_size
             .min(limits.max_buffer_size);
@@ -849,13 +853,12 @@ impl GpuSynthesizer {
         plan: &SynthPlan,
     ) -> std::sync::MutexGuard<'_, Option<Scratch>> {
         let mut guard = self.scratch.lock().unwrap_or_else(|e| e.into_inner());
-        let fits = guard
-            .as_ref()
-            .is_some_and(|s| s.coord_count >= plan.coord_count);
+        let len = plan.coord_buffer_len();
+        let fits = guard.as_ref().is_some_and(|s| s.entries >= len);
         if !fits {
-            let coords = coords_buffer(ctx, plan.coord_count, "texsyn coords");
+            let coords = coords_buffer(ctx, len, "texsyn coords");
             *guard = Some(Scratch {
-                coord_count: plan.coord_count,
+                entries: len,
                 coords,
             });
         }
@@ -1808,7 +1811,7 @@ impl GpuSynthesizer {
         let schedule = plan.schedule(a);
         let last = plan.levels.len() - 1;
         let (coords, texture) = ctx.scoped(|| {
-            let coords = coords_buffer(ctx, plan.coord_count, "texsyn probe coords");
+            let coords = coords_buffer(ctx, plan.coord_buffer_len(), "texsyn probe coords");
             // The checkpoints' stages write no colours (the gather is the last dispatch).
             (coords, self.output_texture(ctx, 1, 1))
         })?;

@@ -555,7 +555,8 @@ impl SynthPlan {
             inset: 0,
             kset_interp: 0,
             quarter: 0,
-            _pad: [0; 2],
+            stamp: 0,
+            clean_before: 0,
         }
     }
 }
@@ -665,10 +666,17 @@ impl Dispatch {
 pub const SUBPASS_ORDER: [[i32; 2]; 4] = [[0, 0], [1, 1], [1, 0], [0, 1]];
 
 impl SynthPlan {
-    /// Where advection keeps its per-pixel distortion flags: after every level's
-    /// coordinates (a buffer for advection holds `coord_count + flag_count()` entries).
+    /// Where advection keeps its per-pixel distortion flags, and an isometric
+    /// correction its change stamps (see [`Self::schedule_with`]): after every level's
+    /// coordinates. A coordinate buffer holds [`Self::coord_buffer_len`] entries.
     pub fn flag_base(&self) -> u32 {
         self.coord_count as u32
+    }
+
+    /// Entries of a GPU coordinate buffer for this plan: the coordinates, then the flag
+    /// region ([`Self::flag_base`], [`Self::flag_count`]).
+    pub fn coord_buffer_len(&self) -> u64 {
+        self.coord_count + self.flag_count()
     }
 
     /// Entries of the flag region (the largest level).
@@ -835,6 +843,16 @@ impl SynthPlan {
             (PassKind::Upsample, PassKind::Correct, PassKind::Gather)
         };
         let mut out = Vec::new();
+        // Isometric corrections skip the pixels whose 3x3 neighbourhood, the pixel
+        // included, is unchanged since their class's previous subpass, which left the
+        // pixel as it was: a correction is a function of those nine coordinates, so it
+        // would leave it again. A pixel that changes writes its subpass's stamp (counted
+        // over the whole schedule, from 1) for itself and its 8 neighbours after the
+        // coordinates (`flag_base`); a pixel whose stamp is below its class's previous
+        // stamp is skipped. Every class of a level's first pass, and of a pass scoring
+        // other candidates than the one before (`sets_every`), runs in full. The CPU
+        // mirror computes every pixel: the same bytes.
+        let mut stamp = 0u32;
         for level in 0..self.levels.len() {
             let params = self.pass_params(analysis, level);
             out.push(Dispatch {
@@ -902,6 +920,8 @@ impl SynthPlan {
             }
             let margin = self.levels[level].margin as i32;
             let mut subpass = 0;
+            // Per class: the stamp and k of its previous subpass at this level.
+            let mut previous: Vec<Option<(u32, i32)>> = vec![None; order.len()];
             for pass in 0..passes {
                 // Without the sets a pass is the same correction with k = 1 (its own
                 // pipeline, whose candidate loop compiles to the coherent candidates).
@@ -910,13 +930,22 @@ impl SynthPlan {
                 } else {
                     1
                 };
-                for &parity in &order {
+                for (class, &parity) in order.iter().enumerate() {
                     subpass += 1;
+                    stamp += 1;
+                    let clean_before = match previous[class] {
+                        Some((s, pk)) if !aniso && pk == k => s,
+                        _ => 0,
+                    };
+                    previous[class] = Some((stamp, k));
                     let params = PassParams {
                         k,
                         parity,
                         full_distance: full as u32,
                         inset: if shrink { subpass.min(margin) } else { 0 },
+                        flag_base: if aniso { params.flag_base } else { self.flag_base() },
+                        stamp,
+                        clean_before,
                         ..params
                     };
                     out.push(Dispatch {
