@@ -27,11 +27,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (any(q < vec2<i32>(0))) {
         return;
     }
-    // The 3x3 neighbourhood (this pixel included) unchanged since this class's previous
-    // subpass, which left the pixel as it was: the same inputs give the same value
-    // (plan.rs, SynthPlan::schedule_with).
-    let stamp_base = params.flag_base - params.coord_base;
-    if (u32(coords[stamp_base + region_index(q)].x) < (params.clean_before | u32(opaque))) {
+    // The same inputs as when this class's previous subpass left the pixel unchanged.
+    if (unchanged_since_last_look(q)) {
         return;
     }
     let h = params.step;
@@ -114,19 +111,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
     }
     coords[self_index] = best;
-    // A dispatch without a stamp (one not from SynthPlan::schedule) stamps nothing.
-    if ((params.stamp | u32(opaque)) != 0u && any(best != n.zz)) {
-        // Every neighbour reads this pixel, and so does the pixel itself: stamp all
-        // nine (several pixels may stamp the same one, all with the same value).
-        let s = vec2<i32>(i32(params.stamp), 0);
-        coords[stamp_base + self_index] = s;
-        coords[stamp_base + region_index(q + vec2<i32>(-1, -1))] = s;
-        coords[stamp_base + region_index(q + vec2<i32>(0, -1))] = s;
-        coords[stamp_base + region_index(q + vec2<i32>(1, -1))] = s;
-        coords[stamp_base + region_index(q + vec2<i32>(-1, 0))] = s;
-        coords[stamp_base + region_index(q + vec2<i32>(1, 0))] = s;
-        coords[stamp_base + region_index(q + vec2<i32>(-1, 1))] = s;
-        coords[stamp_base + region_index(q + vec2<i32>(0, 1))] = s;
-        coords[stamp_base + region_index(q + vec2<i32>(1, 1))] = s;
+    if (any(best != n.zz)) {
+        stamp_change(q);
     }
 }

@@ -710,13 +710,19 @@ fn skipped_pixels_leave_every_subpass_as_the_cpu_computes() {
         )
         .unwrap(),
     );
+    let vortex = Field::Vortex {
+        center: [20.5, 50.0],
+        scale: 0.8,
+    };
     let cases = [
-        (full.clone(), 2, 72, 1, 4),
-        (full, 0, 96, 3, 8),
-        (analysis(true, 3), 1, 64, 5, 8),
-        (analysis(false, 4), 0, 64, 2, 8),
+        (full.clone(), 2, 72, 1, 4, None),
+        (full.clone(), 0, 96, 3, 8, None),
+        (analysis(true, 3), 1, 64, 5, 8, None),
+        (analysis(false, 4), 0, 64, 2, 8, None),
+        // Anisometric: the correction depends on the pixel's Jacobian too (fixed).
+        (full, 0, 64, 4, 8, Some(vortex)),
     ];
-    for (a, extra, size, seed, passes) in cases {
+    for (a, extra, size, seed, passes, field) in cases {
         let params = SynthParams {
             width: size,
             height: size + 8,
@@ -724,6 +730,7 @@ fn skipped_pixels_leave_every_subpass_as_the_cpu_computes() {
             seed,
             extra_still_levels: extra,
             passes,
+            field,
             ..Default::default()
         };
         let gpu = GpuSynthesizer::new(ctx(), a.clone()).unwrap();
@@ -733,9 +740,9 @@ fn skipped_pixels_leave_every_subpass_as_the_cpu_computes() {
         // subpass, first passes nothing.
         let skipping = schedule
             .iter()
-            .filter(|d| d.kind == PassKind::Correct && d.params.clean_before > 0)
+            .filter(|d| matches!(d.kind, PassKind::Correct | PassKind::CorrectAniso) && d.params.clean_before > 0)
             .count();
-        let corrections = schedule.iter().filter(|d| d.kind == PassKind::Correct).count();
+        let corrections = schedule.iter().filter(|d| matches!(d.kind, PassKind::Correct | PassKind::CorrectAniso)).count();
         assert!(skipping * 2 >= corrections, "{skipping} of {corrections} subpasses skip");
         let mut cpu = vec![[0i32; 2]; plan.coord_count as usize];
         let jac = plan.jacobians();
@@ -744,7 +751,7 @@ fn skipped_pixels_leave_every_subpass_as_the_cpu_computes() {
             run_cpu(&a, &schedule[i..i + 1], &mut cpu, &jac);
             // Every level's last subpass.
             let level_end = schedule.get(i + 1).is_none_or(|n| n.level != d.level);
-            if d.kind != PassKind::Correct || !level_end {
+            if !matches!(d.kind, PassKind::Correct | PassKind::CorrectAniso) || !level_end {
                 continue;
             }
             let g = gpu.run_prefix(ctx(), &params, i + 1).unwrap();

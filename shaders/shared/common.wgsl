@@ -241,6 +241,31 @@ fn region_index(q: vec2<i32>) -> u32 {
     return params.coord_base + u32(c.y * params.size.x + c.x);
 }
 
+// Change stamps of the corrections (crate::passes::plan::SynthPlan::schedule_with),
+// one per region pixel after every level's coordinates (params.flag_base): whether
+// region pixel q and its 8 neighbours are as they were when its class's previous
+// subpass left it unchanged (then this one would leave it too).
+fn unchanged_since_last_look(q: vec2<i32>) -> bool {
+    let stamp = coords[params.flag_base + region_index(q) - params.coord_base].x;
+    return u32(stamp) < (params.clean_before | u32(opaque));
+}
+
+// After region pixel q changed: stamps it and its 8 neighbours (several pixels may
+// stamp the same one, all with the same value). Nothing without a stamp (dispatches
+// not from SynthPlan::schedule_with, advection frames).
+fn stamp_change(q: vec2<i32>) {
+    if ((params.stamp | u32(opaque)) == 0u) {
+        return;
+    }
+    let s = vec2<i32>(i32(params.stamp), 0);
+    let base = params.flag_base - params.coord_base;
+    for (var dy = -1; dy <= 1; dy++) {
+        for (var dx = -1; dx <= 1; dx++) {
+            coords[base + region_index(q + vec2<i32>(dx, dy))] = s;
+        }
+    }
+}
+
 // The coordinates of a pixel's 3x3 neighbourhood, loaded once per correction: every
 // storage read costs CPU drivers a loop over the SIMD lanes, and the predictions and the
 // candidates read the same nine pixels (names: x then y, m = -1, z = 0, p = +1).

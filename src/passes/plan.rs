@@ -773,6 +773,10 @@ impl SynthPlan {
                             };
                         if keep_fill {
                             let mut d = *d;
+                            // The advection moved the coordinates: no pixel is skipped,
+                            // none stamps (see `schedule_with`).
+                            d.params.stamp = 0;
+                            d.params.clean_before = 0;
                             d.params.kset_interp = options.interpolate_sets as u32;
                             d.params.quarter = options.quarter_reads as u32;
                             // With one pass, the finest level's similarity sets follow
@@ -811,8 +815,14 @@ impl SynthPlan {
     /// The first frame of an advection: the whole synthesis, with the gather every
     /// later frame uses (`nearest`: the nearest exemplar texel, else bilinear).
     pub fn advect_first_schedule(&self, analysis: &Analysis, nearest: bool) -> Vec<Dispatch> {
-        // Full subpasses: the flow carries the margins into view.
+        // Full subpasses: the flow carries the margins into view. No pixel skipped and
+        // no stamp written (see `schedule_with`): the frames keep their own data after
+        // the coordinates (`flag_base`).
         let mut s = self.schedule_with(analysis, false);
+        for d in &mut s {
+            d.params.stamp = 0;
+            d.params.clean_before = 0;
+        }
         if let Some(g) = s.last_mut() {
             g.params.nearest = nearest as u32;
         }
@@ -843,15 +853,19 @@ impl SynthPlan {
             (PassKind::Upsample, PassKind::Correct, PassKind::Gather)
         };
         let mut out = Vec::new();
-        // Isometric corrections skip the pixels whose 3x3 neighbourhood, the pixel
-        // included, is unchanged since their class's previous subpass, which left the
-        // pixel as it was: a correction is a function of those nine coordinates, so it
-        // would leave it again. A pixel that changes writes its subpass's stamp (counted
-        // over the whole schedule, from 1) for itself and its 8 neighbours after the
-        // coordinates (`flag_base`); a pixel whose stamp is below its class's previous
-        // stamp is skipped. Every class of a level's first pass, and of a pass scoring
-        // other candidates than the one before (`sets_every`), runs in full. The CPU
-        // mirror computes every pixel: the same bytes.
+        // Corrections skip the pixels whose 3x3 neighbourhood, the pixel included, is
+        // unchanged since their class's previous subpass, which left the pixel as it
+        // was: a correction is a function of those nine coordinates (and of the pixel's
+        // Jacobian, fixed during a synthesis), so it would leave it again. A pixel that
+        // changes writes its subpass's stamp (counted over the whole schedule, from 1)
+        // for itself and its 8 neighbours after the coordinates (`flag_base`); a pixel
+        // whose stamp is below its class's previous stamp is skipped. Every class of a
+        // level's first pass, and of a pass scoring other candidates than the one before
+        // (`sets_every`), runs in full. Not in atlas synthesis, whose fills rewrite the
+        // gutters between subpasses, nor in advection (`advect_schedule`, whose
+        // coordinates move between frames, and `advect_first_schedule`). The CPU mirror
+        // computes every pixel: the same bytes.
+        let skipping = self.params.surface.is_none();
         let mut stamp = 0u32;
         for level in 0..self.levels.len() {
             let params = self.pass_params(analysis, level);
@@ -934,7 +948,7 @@ impl SynthPlan {
                     subpass += 1;
                     stamp += 1;
                     let clean_before = match previous[class] {
-                        Some((s, pk)) if !aniso && pk == k => s,
+                        Some((s, pk)) if skipping && pk == k => s,
                         _ => 0,
                     };
                     previous[class] = Some((stamp, k));
@@ -943,7 +957,7 @@ impl SynthPlan {
                         parity,
                         full_distance: full as u32,
                         inset: if shrink { subpass.min(margin) } else { 0 },
-                        flag_base: if aniso { params.flag_base } else { self.flag_base() },
+                        flag_base: self.flag_base(),
                         stamp,
                         clean_before,
                         ..params
