@@ -246,8 +246,13 @@ fn region_index(q: vec2<i32>) -> u32 {
 // region pixel q and its 8 neighbours are as they were when its class's previous
 // subpass left it unchanged (then this one would leave it too).
 fn unchanged_since_last_look(q: vec2<i32>) -> bool {
+    let clean_before = params.clean_before | u32(opaque);
+    // Not even the read in subpasses that skip nothing.
+    if (clean_before == 0u) {
+        return false;
+    }
     let stamp = coords[params.flag_base + region_index(q) - params.coord_base].x;
-    return u32(stamp) < (params.clean_before | u32(opaque));
+    return u32(stamp) < clean_before;
 }
 
 // After region pixel q changed: stamps it and its 8 neighbours (several pixels may
