@@ -739,9 +739,15 @@ fn skipped_pixels_leave_every_subpass_as_the_cpu_computes() {
         // class's previous subpass; first passes and jittered levels nothing.
         let skipping = schedule
             .iter()
-            .filter(|d| matches!(d.kind, PassKind::Correct | PassKind::CorrectAniso) && d.params.clean_before > 0)
+            .filter(|d| {
+                matches!(d.kind, PassKind::Correct | PassKind::CorrectAniso)
+                    && d.params.clean_before > 0
+            })
             .count();
-        let corrections = schedule.iter().filter(|d| matches!(d.kind, PassKind::Correct | PassKind::CorrectAniso)).count();
+        let corrections = schedule
+            .iter()
+            .filter(|d| matches!(d.kind, PassKind::Correct | PassKind::CorrectAniso))
+            .count();
         assert!(skipping > 0, "none of {corrections} subpasses skips");
         let mut cpu = vec![[0i32; 2]; plan.coord_count as usize];
         let jac = plan.jacobians();

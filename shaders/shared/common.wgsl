@@ -56,8 +56,8 @@ struct Params {
     inset: i32,
     kset_interp: u32,
     quarter: u32,
-    // Isometric correction: this subpass's stamp, and the stamps below which a pixel's
-    // 3x3 neighbourhood counts as unchanged since its previous subpass (0: none does).
+    // Corrections: this subpass's stamp, and the stamps below which a pixel and its
+    // neighbours count as unchanged since its class's previous subpass (0: none does).
     stamp: u32,
     clean_before: u32,
 }

@@ -74,7 +74,7 @@ pub struct PassParams {
     pub fill_count: u32,
     /// Advection: index in the coordinate buffer of the per-pixel distortion flags
     /// (the upsample then only rewrites flagged pixels); 0 = upsample every pixel.
-    /// Isometric correction: where the change stamps start (see `stamp`).
+    /// Corrections: where the change stamps start (see `stamp`).
     pub flag_base: u32,
     /// Advection: the output window's absolute origin (the velocity field covers the
     /// window, finest-level pixels).
@@ -105,8 +105,8 @@ pub struct PassParams {
     /// level from 16x supersampled tables, one read instead of four (advection frames;
     /// see `correct_aniso.rs`).
     pub quarter: u32,
-    /// Isometric correction (GPU only; the CPU mirror computes every pixel, the same
-    /// values): the subpass's stamp, written at `flag_base` + the pixel's region index
+    /// Corrections (GPU only; the CPU mirror computes every pixel, the same values):
+    /// the subpass's stamp, written at `flag_base` + the pixel's region index
     /// for a pixel that changes and its 8 neighbours, and `clean_before`: a pixel whose
     /// stamp is below it has had the same 3x3 neighbourhood since its class's previous
     /// subpass, which left it unchanged, so it is skipped (0: none is). See

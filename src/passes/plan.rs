@@ -666,8 +666,8 @@ impl Dispatch {
 pub const SUBPASS_ORDER: [[i32; 2]; 4] = [[0, 0], [1, 1], [1, 0], [0, 1]];
 
 impl SynthPlan {
-    /// Where advection keeps its per-pixel distortion flags, and an isometric
-    /// correction its change stamps (see [`Self::schedule_with`]): after every level's
+    /// Where advection keeps its per-pixel distortion flags, and a synthesis its
+    /// corrections' change stamps (see [`Self::schedule_with`]): after every level's
     /// coordinates. A coordinate buffer holds [`Self::coord_buffer_len`] entries.
     pub fn flag_base(&self) -> u32 {
         self.coord_count as u32
@@ -864,10 +864,10 @@ impl SynthPlan {
         // (`sets_every`), runs in full, and so do jittered levels (below). Measured on
         // lavapipe, 512x512: the corrections took 0.80-0.90 of their time where the
         // copy guard keeps two more still levels, 0.84-0.90 with the default schedule
-        // (gravel 128 and 512 px, `GpuSynthesizer::profile`). Not in atlas synthesis, whose fills rewrite the
-        // gutters between subpasses, nor in advection (`advect_schedule`, whose
-        // coordinates move between frames, and `advect_first_schedule`). The CPU mirror
-        // computes every pixel: the same bytes.
+        // (gravel 128 and 512 px, `GpuSynthesizer::profile`). Not in atlas synthesis,
+        // whose fills rewrite the gutters between subpasses, nor in advection
+        // (`advect_schedule`, whose coordinates move between frames, and
+        // `advect_first_schedule`). The CPU mirror computes every pixel: the same bytes.
         let skipping = self.params.surface.is_none();
         let mut stamp = 0u32;
         for level in 0..self.levels.len() {
