@@ -669,7 +669,8 @@ fn too_large(
     }
 }
 
-/// A coordinate buffer for `count` coordinates (every level of a plan).
+/// A coordinate buffer of `count` entries (every level of a plan, then its flag region:
+/// `SynthPlan::coord_buffer_len`).
 fn coords_buffer(ctx: &GpuContext, count: u64, label: &str) -> wgpu::Buffer {
     ctx.device.create_buffer(&wgpu::BufferDescriptor {
         label: Some(label),
