@@ -859,9 +859,9 @@ impl SynthPlan {
         // Jacobian, fixed during a synthesis), so it would leave it again. A pixel that
         // changes writes its subpass's stamp (counted over the whole schedule, from 1)
         // for itself and its 8 neighbours after the coordinates (`flag_base`); a pixel
-        // whose stamp is below its class's previous stamp is skipped. Every class of a
-        // level's first pass, and of a pass scoring other candidates than the one before
-        // (`sets_every`), runs in full, and so do jittered levels (below). Measured on
+        // whose stamp is below the stamp of its class's latest subpass with the same
+        // candidates (`sets_every` alternates two kinds) is skipped. A level's first
+        // pass (of each kind) runs in full, and so do jittered levels (below). Measured on
         // lavapipe, 512x512: the corrections took 0.80-0.90 of their time where the
         // copy guard keeps two more still levels, 0.84-0.90 with the default schedule
         // (gravel 128 and 512 px, `GpuSynthesizer::profile`). Not in atlas synthesis,
@@ -941,8 +941,8 @@ impl SynthPlan {
             // last pass (0-12% could be skipped in passes 1-2, 22-53% in pass 3, counted
             // with the CPU mirror), which did not pay for the stamps.
             let skipping = skipping && params.jitter_amp == 0;
-            // Per class: the stamp and k of its previous subpass at this level.
-            let mut previous: Vec<Option<(u32, i32)>> = vec![None; order.len()];
+            // Per class and k: the stamp of its latest subpass with that k at this level.
+            let mut previous: Vec<Vec<(i32, u32)>> = vec![Vec::new(); order.len()];
             for pass in 0..passes {
                 // Without the sets a pass is the same correction with k = 1 (its own
                 // pipeline, whose candidate loop compiles to the coherent candidates).
@@ -954,11 +954,15 @@ impl SynthPlan {
                 for (class, &parity) in order.iter().enumerate() {
                     subpass += 1;
                     stamp += 1;
-                    let clean_before = match previous[class] {
-                        Some((s, pk)) if skipping && pk == k => s,
+                    // Since then, every change in the neighbourhood (also one by a
+                    // subpass with the other k) left a newer stamp.
+                    let latest = previous[class].iter().find(|(pk, _)| *pk == k);
+                    let clean_before = match latest {
+                        Some(&(_, s)) if skipping => s,
                         _ => 0,
                     };
-                    previous[class] = Some((stamp, k));
+                    previous[class].retain(|(pk, _)| *pk != k);
+                    previous[class].push((k, stamp));
                     // Stamps serve the level's next subpasses: none from its last.
                     let last = pass + 1 == passes && class + 1 == order.len();
                     let stamp = if skipping && !last { stamp } else { 0 };
