@@ -715,7 +715,8 @@ impl SynthPlan {
         frame_plan.params.passes = passes;
         frame_plan.params.second_finest_passes = Some(passes);
         frame_plan.params.finest_passes = passes;
-        let full = frame_plan.schedule_with(analysis, false);
+        // No skipping (see `schedule_inner`): the advection moves the coordinates.
+        let full = frame_plan.schedule_inner(analysis, false, false);
         let mut out = Vec::new();
         for level in first..n {
             let base = self.pass_params(analysis, level);
@@ -773,10 +774,6 @@ impl SynthPlan {
                             };
                         if keep_fill {
                             let mut d = *d;
-                            // The advection moved the coordinates: no pixel is skipped,
-                            // none stamps (see `schedule_with`).
-                            d.params.stamp = 0;
-                            d.params.clean_before = 0;
                             d.params.kset_interp = options.interpolate_sets as u32;
                             d.params.quarter = options.quarter_reads as u32;
                             // With one pass, the finest level's similarity sets follow
@@ -816,13 +813,9 @@ impl SynthPlan {
     /// later frame uses (`nearest`: the nearest exemplar texel, else bilinear).
     pub fn advect_first_schedule(&self, analysis: &Analysis, nearest: bool) -> Vec<Dispatch> {
         // Full subpasses: the flow carries the margins into view. No pixel skipped and
-        // no stamp written (see `schedule_with`): the frames keep their own data after
+        // no stamp written (see `schedule_inner`): the frames keep their own data after
         // the coordinates (`flag_base`).
-        let mut s = self.schedule_with(analysis, false);
-        for d in &mut s {
-            d.params.stamp = 0;
-            d.params.clean_before = 0;
-        }
+        let mut s = self.schedule_inner(analysis, false, false);
         if let Some(g) = s.last_mut() {
             g.params.nearest = nearest as u32;
         }
@@ -842,6 +835,11 @@ impl SynthPlan {
     /// the finest level's gather reads): the output does not change, and the coarse
     /// levels, mostly margin, cost ~40% less.
     pub fn schedule_with(&self, analysis: &Analysis, shrink: bool) -> Vec<Dispatch> {
+        self.schedule_inner(analysis, shrink, true)
+    }
+
+    /// [`Self::schedule_with`]; with `skip`, the corrections skip settled pixels (below).
+    fn schedule_inner(&self, analysis: &Analysis, shrink: bool, skip: bool) -> Vec<Dispatch> {
         let aniso = self.params.anisometric();
         let (upsample, correct, gather) = if aniso {
             (
@@ -867,8 +865,9 @@ impl SynthPlan {
         // (gravel 128 and 512 px, `GpuSynthesizer::profile`). Not in atlas synthesis,
         // whose fills rewrite the gutters between subpasses, nor in advection
         // (`advect_schedule`, whose coordinates move between frames, and
-        // `advect_first_schedule`). The CPU mirror computes every pixel: the same bytes.
-        let skipping = self.params.surface.is_none();
+        // `advect_first_schedule`: `skip` off). The CPU mirror computes every pixel: the
+        // same bytes.
+        let skipping = skip && self.params.surface.is_none();
         let mut stamp = 0u32;
         for level in 0..self.levels.len() {
             let params = self.pass_params(analysis, level);
@@ -941,8 +940,9 @@ impl SynthPlan {
             // last pass (0-12% could be skipped in passes 1-2, 22-53% in pass 3, counted
             // with the CPU mirror), which did not pay for the stamps.
             let skipping = skipping && params.jitter_amp == 0;
-            // Per class and k: the stamp of its latest subpass with that k at this level.
-            let mut previous: Vec<Vec<(i32, u32)>> = vec![Vec::new(); order.len()];
+            // Per class and kind of pass (with the sets, without): the stamp of its
+            // latest subpass of that kind at this level (0: none yet).
+            let mut previous = vec![[0u32; 2]; order.len()];
             for pass in 0..passes {
                 // Without the sets a pass is the same correction with k = 1 (its own
                 // pipeline, whose candidate loop compiles to the coherent candidates).
@@ -955,14 +955,10 @@ impl SynthPlan {
                     subpass += 1;
                     stamp += 1;
                     // Since then, every change in the neighbourhood (also one by a
-                    // subpass with the other k) left a newer stamp.
-                    let latest = previous[class].iter().find(|(pk, _)| *pk == k);
-                    let clean_before = match latest {
-                        Some(&(_, s)) if skipping => s,
-                        _ => 0,
-                    };
-                    previous[class].retain(|(pk, _)| *pk != k);
-                    previous[class].push((k, stamp));
+                    // subpass of the other kind) left a newer stamp.
+                    let kind = (k != params.k) as usize;
+                    let clean_before = if skipping { previous[class][kind] } else { 0 };
+                    previous[class][kind] = stamp;
                     // Stamps serve the level's next subpasses: none from its last.
                     let last = pass + 1 == passes && class + 1 == order.len();
                     let stamp = if skipping && !last { stamp } else { 0 };
