@@ -208,6 +208,23 @@ fn expect_bad(bytes: &[u8], needles: &[&str], max_alloc: usize) -> String {
         largest <= max_alloc.max(bytes.len()) + (1 << 16) + 4096,
         "load allocated {largest} bytes at once for {reason:?}"
     );
+    // Mapped: the same error, and no copy of the file.
+    // SAFETY: the file is this test's own and stays as it is.
+    let (r, largest) = largest_alloc(|| unsafe { Analysis::load_mapped(&path) });
+    match r {
+        Err(Error::BadAnalysisFile {
+            path: at,
+            reason: r,
+        }) => {
+            assert_eq!(at, path);
+            assert_eq!(r, reason, "load_mapped and from_bytes disagree");
+        }
+        other => panic!("load_mapped: expected BadAnalysisFile, got {other:?}"),
+    }
+    assert!(
+        largest <= max_alloc + 4096,
+        "load_mapped allocated {largest} bytes at once for {reason:?}"
+    );
     reason
 }
 
@@ -246,7 +263,7 @@ fn round_trip_bytes_and_struct() {
         }
         let bytes = a.to_bytes();
         assert_eq!(&bytes[..8], b"TEXSYNA\0");
-        assert_eq!(u32::from_le_bytes(bytes[8..12].try_into().unwrap()), 3);
+        assert_eq!(u32::from_le_bytes(bytes[8..12].try_into().unwrap()), 4);
         let plen = u64::from_le_bytes(bytes[12..20].try_into().unwrap());
         assert_eq!(plen as usize + HEADER_LEN + 8, bytes.len());
         // The checksum is the documented one (the writer hashes in chunks of its own).
@@ -255,6 +272,96 @@ fn round_trip_bytes_and_struct() {
         let b = Analysis::from_bytes(&bytes, &p()).unwrap();
         assert_eq!(a, b);
         assert_eq!(b.to_bytes(), bytes);
+    }
+}
+
+/// Every table starts at a multiple of 16 bytes from the start of the file, after zero
+/// padding; a non-zero padding byte is an error, with the checksum right.
+#[test]
+fn tables_are_aligned_and_their_padding_checked() {
+    let a = synthetic(40, 17, 3, false, 11);
+    let bytes = a.to_bytes();
+    // Walk the layout (module docs of src/analysis/file.rs) and check each table's start.
+    let payload = payload_of(&bytes);
+    let u64_at = |i: usize| u64::from_le_bytes(payload[i..i + 8].try_into().unwrap());
+    let mut at = 17 + 8 + 40 * 17 * 4 + 4;
+    let mut pads = Vec::new();
+    for lv in &a.levels {
+        at += 5 * 4 + 2 * 4 * DIM * DIM;
+        for (n, size) in [
+            (lv.et.len(), 2 * DIM),
+            (lv.qe.len(), 2 * DIM),
+            (lv.offsets.len(), 4),
+        ] {
+            assert_eq!(u64_at(at), n as u64);
+            at += 8;
+            let pad = (16 - (HEADER_LEN + at) % 16) % 16;
+            assert!(payload[at..at + pad].iter().all(|&b| b == 0));
+            pads.push((at, pad));
+            at += pad;
+            assert_eq!((HEADER_LEN + at) % 16, 0);
+            at += n * size;
+        }
+    }
+    assert_eq!(at + 2 + 12, payload.len());
+    // A padding byte set, the checksum recomputed: refused, by every reader.
+    let &(pad_at, _) = pads.iter().find(|(_, pad)| *pad > 0).unwrap();
+    let mut pl = payload.to_vec();
+    pl[pad_at] = 1;
+    expect_bad(
+        &wrap(&pl),
+        &["level 0 et: the padding before its values is not zero"],
+        1 << 16,
+    );
+}
+
+/// `load_mapped`: the same analysis as `load`, its tables views of the file; changing a
+/// table copies it; replacing the file (as `save` does) leaves a mapped analysis intact.
+#[test]
+fn mapped_load_uses_the_file_in_place() {
+    let dir = TempDir::new("mapped");
+    let path = dir.path().join("a.tsa");
+    let a = synthetic(40, 17, 3, false, 12);
+    a.save(&path).unwrap();
+    // SAFETY: the file is only replaced by `save` (a rename) below, never truncated.
+    let m = unsafe { Analysis::load_mapped(&path) }.unwrap();
+    assert_eq!(m, a);
+    assert_eq!(m, Analysis::load(&path).unwrap());
+    for lv in &m.levels {
+        for (mapped, len) in [
+            (lv.et.is_mapped(), lv.et.len()),
+            (lv.qe.is_mapped(), lv.qe.len()),
+            (lv.offsets.is_mapped(), lv.offsets.len()),
+        ] {
+            assert_eq!(mapped, len > 0, "a table of {len} values");
+        }
+    }
+    assert_eq!(m.to_bytes(), a.to_bytes());
+    // A change copies the table: the clone and the file keep their values.
+    let mut changed = m.clone();
+    assert!(changed.levels[2].et.is_mapped());
+    changed.levels[2].et[5][3] ^= 0x155;
+    assert!(!changed.levels[2].et.is_mapped() && m.levels[2].et.is_mapped());
+    assert_ne!(changed, m);
+    assert_eq!(m, a);
+    assert_eq!(std::fs::read(&path).unwrap(), a.to_bytes());
+    // The file replaced by another analysis: the mapped one still reads the old file.
+    let b = synthetic(40, 17, 3, false, 13);
+    b.save(&path).unwrap();
+    assert_eq!(m, a);
+    assert_eq!(Analysis::load(&path).unwrap(), b);
+    // Empty and missing files: the errors `load` gives.
+    let empty = dir.path().join("empty.tsa");
+    std::fs::write(&empty, b"").unwrap();
+    // SAFETY: as above.
+    match unsafe { Analysis::load_mapped(&empty) } {
+        Err(Error::BadAnalysisFile { reason, .. }) => assert!(reason.contains("empty"), "{reason}"),
+        other => panic!("expected BadAnalysisFile, got {other:?}"),
+    }
+    // SAFETY: as above.
+    match unsafe { Analysis::load_mapped(&dir.path().join("missing.tsa")) } {
+        Err(Error::Io { .. }) => {}
+        other => panic!("expected Io, got {other:?}"),
     }
 }
 
@@ -350,37 +457,30 @@ fn wrong_version() {
     expect_bad(
         &bytes,
         &[
-            "analysis file version 7 is not supported by this texsyn (expects 3)",
+            "analysis file version 7 is not supported by this texsyn (expects 4)",
             "re-run `texsyn analyze`",
         ],
         4096,
     );
     // The version is reported even when the rest of the file has another layout.
     expect_bad(
-        b"TEXSYNA\0\x04\0\0\0",
-        &["version 4 is not supported"],
+        b"TEXSYNA\0\x05\0\0\0",
+        &["version 5 is not supported"],
         4096,
     );
     // Files of the previous layouts (version 1, without the appearance settings;
-    // version 2, with the byte-wise checksum).
-    expect_bad(
-        b"TEXSYNA\0\x02\0\0\0",
-        &[
-            "version 2 is not supported",
-            "expects 3",
-            "re-run `texsyn analyze`",
-        ],
-        4096,
-    );
-    expect_bad(
-        b"TEXSYNA\0\x01\0\0\0",
-        &[
-            "version 1 is not supported",
-            "expects 3",
-            "re-run `texsyn analyze`",
-        ],
-        4096,
-    );
+    // version 2, with the byte-wise checksum; version 3, without the tables' padding).
+    for v in 1..=3u8 {
+        expect_bad(
+            &[b"TEXSYNA\0".as_slice(), &[v, 0, 0, 0]].concat(),
+            &[
+                &format!("version {v} is not supported"),
+                "expects 4",
+                "re-run `texsyn analyze`",
+            ],
+            4096,
+        );
+    }
 }
 
 #[test]
@@ -549,26 +649,26 @@ fn crafted_invalid_values() {
     check(a, "colors has 255 entries, expected 256");
 
     let mut a = base.clone();
-    a.levels[3].qe.push([0; DIM]);
+    a.levels[3].qe.to_mut().push([0; DIM]);
     check(a, "level 3 qe has 257 entries");
 
     // Only the finest level (4 here) may go without its similarity sets.
     let mut a = base.clone();
-    a.levels[3].offsets.clear();
+    a.levels[3].offsets = Default::default();
     check(a, "level 3 offsets has 0 entries, expected 256");
     let mut a = base.clone();
-    a.levels[4].offsets.truncate(1);
+    a.levels[4].offsets.to_mut().truncate(1);
     check(a, "level 4 offsets has 1 entries, expected 256");
     let mut a = base.clone();
-    a.levels[4].offsets.clear();
+    a.levels[4].offsets = Default::default();
     let back = Analysis::from_bytes(&a.to_bytes(), Path::new("lean.tsa")).unwrap();
     assert!(!back.has_finest_sets() && back == a);
     // Without its sets the finest level may go without its et/qe tables too, and level
     // 0 (never corrected) may go without them always; other levels, never.
-    a.levels[4].et.clear();
-    a.levels[4].qe.clear();
-    a.levels[0].et.clear();
-    a.levels[0].qe.clear();
+    a.levels[4].et = Default::default();
+    a.levels[4].qe = Default::default();
+    a.levels[0].et = Default::default();
+    a.levels[0].qe = Default::default();
     let back = Analysis::from_bytes(&a.to_bytes(), Path::new("lean.tsa")).unwrap();
     assert!(!back.has_tables(4) && !back.has_tables(0) && back.has_tables(1) && back == a);
     let mut b = a.clone();
@@ -578,8 +678,8 @@ fn crafted_invalid_values() {
     b.levels[4].offsets = base.levels[4].offsets.clone();
     check(b, "level 4 has similarity sets but no et/qe tables");
     let mut b = base.clone();
-    b.levels[2].et.clear();
-    b.levels[2].qe.clear();
+    b.levels[2].et = Default::default();
+    b.levels[2].qe = Default::default();
     check(b, "level 2 et has 0 entries, expected 256");
 
     // Tileable flag other than 0/1.

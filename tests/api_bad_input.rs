@@ -48,7 +48,7 @@ fn hand_built_analyses_are_checked() {
     };
     assert!(texsyn::passes::synthesize_cpu(&a, &params).is_err());
     let mut a = (*analysis()).clone();
-    a.levels[2].et.truncate(10);
+    a.levels[2].et.to_mut().truncate(10);
     assert!(a.validate().is_err());
     let mut a = (*analysis()).clone();
     a.colors.clear();

@@ -242,7 +242,7 @@ fn lean_analysis_file_round_trip() {
     // Only the finest level may go without its sets.
     let mut coarse = (*lean).clone();
     let l = coarse.levels.len() - 2;
-    coarse.levels[l].offsets.clear();
+    coarse.levels[l].offsets = Default::default();
     match coarse.validate() {
         Err(Error::InvalidParameter(m)) => assert!(m.contains("offsets"), "{m}"),
         other => panic!("expected a refusal, got {other:?}"),

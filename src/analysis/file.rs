@@ -6,14 +6,15 @@
 //! ```text
 //! offset  size  field
 //! 0       8     magic  b"TEXSYNA\0"
-//! 8       4     u32    format version (FORMAT_VERSION = 3)
+//! 8       4     u32    format version (FORMAT_VERSION = 4)
 //! 12      8     u64    payload length P in bytes
 //! 20      P     payload (below)
 //! 20+P    8     u64    checksum of the P payload bytes: FNV-1a 64 in four lanes
 //!                      of u64 words (version 2: plain FNV-1a 64; see `Checksum`)
 //! ```
 //!
-//! Payload, versions 2 and 3 (version 1 lacked the trailer after the levels):
+//! Payload, version 4 (version 1 lacked the trailer after the levels; versions 2 and 3
+//! had no padding before the tables):
 //!
 //! ```text
 //! u32 width, u32 height, u32 channels, u8 tileable (0|1), u32 k
@@ -26,17 +27,21 @@
 //!     f32 residual_variance                 (IEEE bits)
 //!     f32 runtime_residual_variance
 //!     8 x 32 i16 proj                       row-major
-//!     u64 n_et,      n_et x 8 i16           (n_et == width*height, or 0 where no synthesis
+//!     u64 n_et, pad, n_et x 8 i16           (n_et == width*height, or 0 where no synthesis
 //!                                           corrects: level 0, or the finest level when its
 //!                                           offsets are left out; older files write them)
-//!     u64 n_qe,      n_qe x 8 i16           (n_qe == n_et)
-//!     u64 n_offsets, n_offsets x 2 i16      (n_offsets == width*height*(k-1); 0 allowed on
+//!     u64 n_qe, pad, n_qe x 8 i16           (n_qe == n_et)
+//!     u64 n_offsets, pad, n_offsets x 2 i16 (n_offsets == width*height*(k-1); 0 allowed on
 //!                                           the finest level: its sets left out)
 //! u8  appearance space                      (0 = neighborhood, 1 = color)
 //! u8  feature mask used: 0 none, 1 in the appearance vectors, 2 in the similarity sets
 //!     only (FeatureMode::Sets; older texsyn builds refuse 2 with a clear error)
 //! f32 feature weight, f32 feature clamp (dmax), f32 mask coverage   (all 0 without a mask)
 //! ```
+//!
+//! `pad` is 0-15 zero bytes, so that every table starts at a multiple of 16 bytes from
+//! the start of the file: a mapped file's tables are used in place
+//! ([`Analysis::load_mapped`]), which needs them aligned.
 //!
 //! Counts are element counts, not byte counts. The file must end right after the
 //! checksum. Decoding checks the magic, the version, the length, the checksum and then
@@ -46,17 +51,27 @@
 
 use std::io::Write;
 use std::path::Path;
+use std::sync::Arc;
 
 use super::feature::{FEATURE_CLAMP_RANGE, MAX_FEATURE_WEIGHT};
 use super::{
-    level_count, Analysis, AppearanceSpace, FeatureInfo, FeatureMode, LevelData, DIM, MAX_K,
+    level_count, Analysis, AppearanceSpace, FeatureInfo, FeatureMode, LevelData, Table, DIM,
+    MAX_K,
 };
 use crate::error::{Error, Result};
 
 /// First 8 bytes of every analysis file.
 pub const MAGIC: [u8; 8] = *b"TEXSYNA\0";
 /// Version of the layout written by this texsyn; the only one it reads.
-pub const FORMAT_VERSION: u32 = 3;
+pub const FORMAT_VERSION: u32 = 4;
+/// Every table starts at a multiple of this many bytes from the start of the file.
+const TABLE_ALIGN: u64 = 16;
+
+/// Zero bytes before a table whose count ends at payload offset `payload_pos`.
+fn table_padding(payload_pos: u64) -> u64 {
+    let at = HEADER_LEN as u64 + payload_pos;
+    (TABLE_ALIGN - at % TABLE_ALIGN) % TABLE_ALIGN
+}
 /// Magic + version + payload length.
 const HEADER_LEN: usize = 8 + 4 + 8;
 const CHECKSUM_LEN: usize = 8;
@@ -198,6 +213,17 @@ impl<'a, W: Write> PayloadWriter<'a, W> {
     fn f32(&mut self, v: f32) -> std::io::Result<()> {
         self.bytes(&v.to_bits().to_le_bytes())
     }
+    /// Bytes of the payload so far.
+    fn position(&self) -> u64 {
+        self.written + self.buf.len() as u64
+    }
+    /// A table: its element count, the padding that aligns it, its values.
+    fn table<const N: usize>(&mut self, t: &[[i16; N]]) -> std::io::Result<()> {
+        self.u64(t.len() as u64)?;
+        let pad = table_padding(self.position()) as usize;
+        self.bytes(&[0u8; TABLE_ALIGN as usize][..pad])?;
+        self.i16s(t.as_flattened())
+    }
     fn i16s(&mut self, vals: &[i16]) -> std::io::Result<()> {
         for chunk in vals.chunks(CHUNK / 2) {
             for &v in chunk {
@@ -222,12 +248,17 @@ impl Analysis {
         let mut n: u64 = 4 * 3 + 1 + 4; // width, height, channels, tileable, k
         n += 8 + 4 * self.colors.len() as u64;
         n += 4;
+        // A table: its count, the padding after it, its bytes.
+        let table = |n: u64, bytes: u64| {
+            let counted = n + 8;
+            counted + table_padding(counted) + bytes
+        };
         for lv in &self.levels {
             n += 4 * 3 + 4 * 2; // spacing, margin, shift, two f32
             n += 2 * (4 * DIM * DIM) as u64; // proj
-            n += 8 + 2 * DIM as u64 * lv.et.len() as u64;
-            n += 8 + 2 * DIM as u64 * lv.qe.len() as u64;
-            n += 8 + 4 * lv.offsets.len() as u64;
+            n = table(n, 2 * DIM as u64 * lv.et.len() as u64);
+            n = table(n, 2 * DIM as u64 * lv.qe.len() as u64);
+            n = table(n, 4 * lv.offsets.len() as u64);
         }
         n + APPEARANCE_TRAILER_LEN
     }
@@ -250,12 +281,9 @@ impl Analysis {
             w.f32(lv.residual_variance)?;
             w.f32(lv.runtime_residual_variance)?;
             w.i16s(lv.proj.as_flattened())?;
-            w.u64(lv.et.len() as u64)?;
-            w.i16s(lv.et.as_flattened())?;
-            w.u64(lv.qe.len() as u64)?;
-            w.i16s(lv.qe.as_flattened())?;
-            w.u64(lv.offsets.len() as u64)?;
-            w.i16s(lv.offsets.as_flattened())?;
+            w.table(&lv.et)?;
+            w.table(&lv.qe)?;
+            w.table(&lv.offsets)?;
         }
         w.u8(match self.appearance {
             AppearanceSpace::Neighborhood => 0,
@@ -314,6 +342,8 @@ impl Analysis {
 
     /// Loads an analysis file written by [`Analysis::save`]. A missing or unreadable file
     /// is [`Error::Io`]; anything wrong with the content is [`Error::BadAnalysisFile`].
+    /// The tables are read into memory of their own; [`Analysis::load_mapped`] uses them
+    /// in place.
     pub fn load(path: &Path) -> Result<Analysis> {
         let io = |source| Error::Io {
             path: path.to_path_buf(),
@@ -345,6 +375,7 @@ impl Analysis {
         }
         let mut input = FileInput {
             file,
+            len: payload_len,
             remaining: payload_len,
             hash: Checksum::new(),
         };
@@ -355,8 +386,46 @@ impl Analysis {
         (end && input.hash.finish() == u64::from_le_bytes(stored)).then_some(analysis)
     }
 
+    /// [`Analysis::load`], with the file mapped into memory: the tables are views of the
+    /// file's pages ([`Table::is_mapped`]) instead of copies, which saves reading them
+    /// into fresh memory (on lavapipe, a 53 MB file's load slowed the device creation
+    /// beside it by 10-20 ms). The same checks and errors as `load`; a file that cannot
+    /// be mapped is read as `load` reads it.
+    ///
+    /// # Safety
+    ///
+    /// The file must not be truncated or written in place while the analysis (or a
+    /// clone of it) is alive: its tables read the file's pages, and a truncated file
+    /// makes those reads fault (`SIGBUS`). Replacing the file (a new file renamed over
+    /// it, as [`Analysis::save`] and `texsyn analyze` do) is safe: the mapping keeps the
+    /// old one.
+    pub unsafe fn load_mapped(path: &Path) -> Result<Analysis> {
+        let file = std::fs::File::open(path).map_err(|source| Error::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        // SAFETY: the caller's contract above.
+        match unsafe { memmap2::Mmap::map(&file) } {
+            Ok(map) => {
+                let map = Arc::new(map);
+                Self::decode(&map, Some(&map), path)
+            }
+            Err(_) => Self::load(path),
+        }
+    }
+
     /// Decodes an analysis file's bytes; `path_for_errors` only names the file in errors.
     pub fn from_bytes(bytes: &[u8], path_for_errors: &Path) -> Result<Analysis> {
+        Self::decode(bytes, None, path_for_errors)
+    }
+
+    /// [`Analysis::from_bytes`]; with `map` (whose bytes `bytes` are), the tables are
+    /// views of it.
+    fn decode(
+        bytes: &[u8],
+        map: Option<&Arc<memmap2::Mmap>>,
+        path_for_errors: &Path,
+    ) -> Result<Analysis> {
         let bad = |reason: String| Error::BadAnalysisFile {
             path: path_for_errors.to_path_buf(),
             reason,
@@ -424,6 +493,7 @@ impl Analysis {
         decode_payload(&mut Reader {
             bytes: payload,
             pos: 0,
+            map: map.map(|m| (m, HEADER_LEN)),
         })
         .map_err(|e| bad(format!("invalid content: {e}; {RERUN}")))
     }
@@ -448,23 +518,37 @@ fn truncated(expected_at_least: usize, found: usize) -> String {
 /// file ([`FileInput`]). Every method names the field it reads, for the error.
 trait Input {
     fn remaining(&self) -> u64;
+    /// Bytes of the payload read so far.
+    fn position(&self) -> u64;
     /// Fills `buf` with the next bytes.
     fn fill(&mut self, buf: &mut [u8], what: &str) -> std::result::Result<(), String>;
-    /// A u64 element count that must equal `expected` (or be 0 where `may_be_empty`),
-    /// then its `N`-wide i16 elements, read straight into their vector.
+    /// The next `bytes` bytes as a table of `N`-wide i16 elements.
+    fn table<const N: usize>(
+        &mut self,
+        bytes: usize,
+        what: &str,
+    ) -> std::result::Result<Table<[i16; N]>, String> {
+        owned_table(self, bytes, what)
+    }
+    /// A table: a u64 element count that must equal `expected` (or be 0 where
+    /// `may_be_empty`), the zero padding that aligns it, its `N`-wide i16 elements.
     fn i16_arrays_or_none<const N: usize>(
         &mut self,
         expected: u64,
         may_be_empty: bool,
         what: &str,
-    ) -> std::result::Result<Vec<[i16; N]>, String> {
+    ) -> std::result::Result<Table<[i16; N]>, String> {
         let n = self.count(expected, may_be_empty, 2 * N, what)?;
-        let mut v = vec![[0i16; N]; n / (2 * N)];
-        self.fill(bytemuck::cast_slice_mut(&mut v), what)?;
-        if cfg!(target_endian = "big") {
-            v.iter_mut().flatten().for_each(|x| *x = i16::from_le(*x));
+        let pad = table_padding(self.position()) as usize;
+        if (pad + n) as u64 > self.remaining() {
+            return Err(too_short(pad + n, what, self.remaining()));
         }
-        Ok(v)
+        let mut zeros = [0u8; TABLE_ALIGN as usize];
+        self.fill(&mut zeros[..pad], what)?;
+        if zeros.iter().any(|&b| b != 0) {
+            return Err(format!("{what}: the padding before its values is not zero"));
+        }
+        self.table(n, what)
     }
 
     fn u8(&mut self, what: &str) -> std::result::Result<u8, String> {
@@ -511,6 +595,20 @@ trait Input {
     }
 }
 
+/// The next `bytes` bytes of `input`, read straight into a vector of their own.
+fn owned_table<const N: usize, I: Input + ?Sized>(
+    input: &mut I,
+    bytes: usize,
+    what: &str,
+) -> std::result::Result<Table<[i16; N]>, String> {
+    let mut v = vec![[0i16; N]; bytes / (2 * N)];
+    input.fill(bytemuck::cast_slice_mut(&mut v), what)?;
+    if cfg!(target_endian = "big") {
+        v.iter_mut().flatten().for_each(|x| *x = i16::from_le(*x));
+    }
+    Ok(v.into())
+}
+
 fn too_short(n: usize, what: &str, left: u64) -> String {
     format!("{what} needs {n} bytes but the payload has only {left} left")
 }
@@ -518,6 +616,8 @@ fn too_short(n: usize, what: &str, left: u64) -> String {
 struct Reader<'a> {
     bytes: &'a [u8],
     pos: usize,
+    /// The mapped file `bytes` lie in and their offset in it: tables become views.
+    map: Option<(&'a Arc<memmap2::Mmap>, usize)>,
 }
 
 impl<'a> Reader<'a> {
@@ -535,6 +635,27 @@ impl Input for Reader<'_> {
     fn remaining(&self) -> u64 {
         (self.bytes.len() - self.pos) as u64
     }
+    fn position(&self) -> u64 {
+        self.pos as u64
+    }
+    fn table<const N: usize>(
+        &mut self,
+        bytes: usize,
+        what: &str,
+    ) -> std::result::Result<Table<[i16; N]>, String> {
+        // In place where the file's bytes are the values (little-endian) and aligned.
+        if let (Some((map, at)), true, true) =
+            (self.map, bytes > 0, cfg!(target_endian = "little"))
+        {
+            if bytes <= self.bytes.len() - self.pos {
+                if let Some(t) = Table::mapped(map.clone(), at + self.pos, bytes / (2 * N)) {
+                    self.pos += bytes;
+                    return Ok(t);
+                }
+            }
+        }
+        owned_table(self, bytes, what)
+    }
     fn fill(&mut self, buf: &mut [u8], what: &str) -> std::result::Result<(), String> {
         buf.copy_from_slice(self.take(buf.len(), what)?);
         Ok(())
@@ -547,6 +668,8 @@ impl Input for Reader<'_> {
 /// memory were most of the load (a 400 px exemplar's file is 55 MB).
 struct FileInput<R: std::io::Read> {
     file: R,
+    /// Payload length.
+    len: u64,
     remaining: u64,
     hash: Checksum,
 }
@@ -554,6 +677,9 @@ struct FileInput<R: std::io::Read> {
 impl<R: std::io::Read> Input for FileInput<R> {
     fn remaining(&self) -> u64 {
         self.remaining
+    }
+    fn position(&self) -> u64 {
+        self.len - self.remaining
     }
     fn fill(&mut self, buf: &mut [u8], what: &str) -> std::result::Result<(), String> {
         if (buf.len() as u64) > self.remaining {

@@ -10,9 +10,11 @@ pub mod kcoherence;
 pub mod kdtree;
 pub mod pca;
 pub mod stack;
+pub mod table;
 
 use crate::error::{Error, Result};
 pub use feature::FeatureMask;
+pub use table::Table;
 
 /// Smallest exemplar side we accept: below this the 5x5 neighbourhoods at the finest
 /// level already cover most of the image and synthesis can only copy it.
@@ -301,16 +303,16 @@ pub struct LevelData {
     /// `qe`, on levels no synthesis corrects: level 0 (synthesis starts there from one
     /// coordinate and goes on upsampling) and a finest level analysed without its
     /// similarity sets ([`AnalysisOptions::finest_sets`]).
-    pub et: Vec<[i16; DIM]>,
+    pub et: Table<[i16; DIM]>,
     /// Quantized runtime projection `P_l` (8 rows x 32 columns; column `4*0..` is the
     /// block of diagonal `j` in `DIAGONALS` order: column = j*8 + c).
     pub proj: [[i16; 4 * DIM]; DIM],
     /// `3 * P_l * N_E(u)` computed in integers from `et` and `proj`, then arithmetically
     /// shifted right by `shift`: the exemplar side of the correction distance.
-    pub qe: Vec<[i16; DIM]>,
+    pub qe: Table<[i16; DIM]>,
     pub shift: u32,
     /// k-coherence offsets `O_i(u) = C_i(u) - u` for i = 2..k: `(k-1)` pairs per pixel.
-    pub offsets: Vec<[i16; 2]>,
+    pub offsets: Table<[i16; 2]>,
     /// Fraction of the appearance-vector variance not kept by the 8D PCA.
     pub residual_variance: f32,
     /// Same for the 32D -> 8D runtime neighbourhood projection.
@@ -807,11 +809,11 @@ pub fn analyze(
                 LevelData {
                     spacing,
                     margin,
-                    et: run.et,
+                    et: run.et.into(),
                     proj: run.proj,
-                    qe: run.qe,
+                    qe: run.qe.into(),
                     shift: run.shift,
-                    offsets,
+                    offsets: offsets.into(),
                     residual_variance: residual as f32,
                     runtime_residual_variance: run.runtime_residual as f32,
                 }
@@ -821,11 +823,11 @@ pub fn analyze(
             _ => LevelData {
                 spacing,
                 margin,
-                et: Vec::new(),
+                et: Table::new(),
                 proj: [[0; 4 * DIM]; DIM],
-                qe: Vec::new(),
+                qe: Table::new(),
                 shift: 0,
-                offsets,
+                offsets: offsets.into(),
                 residual_variance: 0.0,
                 runtime_residual_variance: 0.0,
             },
