@@ -170,7 +170,11 @@ pub struct GpuSynthesizer {
     /// 16-byte stand-in for the velocity binding outside advection.
     no_velocity: wgpu::Buffer,
     et: wgpu::Buffer,
-    qe: wgpu::Buffer,
+    /// Uploaded on first use ([`Self::qe_for`]): only the projected distance reads it, and
+    /// a default isometric synthesis uses the full distance on every corrected level.
+    qe: Mutex<Option<wgpu::Buffer>>,
+    /// 16-byte stand-in for `qe` in the bind groups of schedules that never read it.
+    no_qe: wgpu::Buffer,
     offsets: wgpu::Buffer,
     proj: wgpu::Buffer,
     colors: wgpu::Buffer,
@@ -682,6 +686,52 @@ fn coords_buffer(ctx: &GpuContext, count: u64, label: &str) -> wgpu::Buffer {
     })
 }
 
+/// A storage buffer holding one part of every level's tables, concatenated (the layout
+/// the passes index with `et_base` / `off_base`), written straight into a buffer mapped at
+/// creation: no concatenated copy on the host. Each copy of fresh memory costs its page
+/// faults, which on a CPU device were most of the upload (a 400 px exemplar's 55 MB of
+/// tables). Where the device can map storage buffers (a CPU device, see
+/// `GpuContext::headless`) the buffer is written in place; wgpu otherwise writes it to a
+/// staging buffer and copies, twice the memory touched.
+fn levels_buffer(
+    ctx: &GpuContext,
+    a: &Analysis,
+    label: &str,
+    part: &dyn Fn(&LevelData) -> &[u8],
+) -> Result<wgpu::Buffer> {
+    let device = &ctx.device;
+    let usage = if device
+        .features()
+        .contains(wgpu::Features::MAPPABLE_PRIMARY_BUFFERS)
+    {
+        wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::MAP_WRITE
+    } else {
+        wgpu::BufferUsages::STORAGE
+    };
+    let len: usize = a.levels.iter().map(|l| part(l).len()).sum();
+    let size = len.max(16).next_multiple_of(4);
+    let buffer = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: size as u64,
+        usage,
+        mapped_at_creation: true,
+    });
+    {
+        let mut view = buffer
+            .get_mapped_range_mut(..)
+            .map_err(|e| Error::Gpu(format!("uploading the analysis: {e}")))?;
+        let mut at = 0;
+        for l in &a.levels {
+            let b = part(l);
+            view.slice(at..at + b.len()).copy_from_slice(b);
+            at += b.len();
+        }
+        // The rest (padding) is zero: mapped-at-creation memory starts zeroed.
+    }
+    buffer.unmap();
+    Ok(buffer)
+}
+
 /// Bytes of a buffer holding `data`, never empty (WebGPU rejects 0-sized bindings).
 fn padded<T: bytemuck::Pod>(data: &[T]) -> Vec<u8> {
     let mut b = bytemuck::cast_slice(data).to_vec();
@@ -710,48 +760,10 @@ impl GpuSynthesizer {
                     }
                 }
             }
-            // The per-level tables are written straight into buffers mapped at creation,
-            // level after level: no concatenated copy on the host. Each copy of fresh
-            // memory costs its page faults, which on a CPU device were most of the upload
-            // (a 400 px exemplar's 55 MB of tables).
-            // Where the device can map storage buffers (a CPU device, see
-            // `GpuContext::headless`), the tables are written in place: wgpu otherwise
-            // writes them to a staging buffer and copies, twice the memory touched.
-            let table_usage = if device
-                .features()
-                .contains(wgpu::Features::MAPPABLE_PRIMARY_BUFFERS)
-            {
-                wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::MAP_WRITE
-            } else {
-                wgpu::BufferUsages::STORAGE
-            };
-            let levels_buffer = |label: &str, part: &dyn Fn(&LevelData) -> &[u8]| {
-                let len: usize = a.levels.iter().map(|l| part(l).len()).sum();
-                let size = len.max(16).next_multiple_of(4);
-                let buffer = device.create_buffer(&wgpu::BufferDescriptor {
-                    label: Some(label),
-                    size: size as u64,
-                    usage: table_usage,
-                    mapped_at_creation: true,
-                });
-                {
-                    let mut view = buffer
-                        .get_mapped_range_mut(..)
-                        .map_err(|e| Error::Gpu(format!("uploading the analysis: {e}")))?;
-                    let mut at = 0;
-                    for l in &a.levels {
-                        let b = part(l);
-                        view.slice(at..at + b.len()).copy_from_slice(b);
-                        at += b.len();
-                    }
-                    // The rest (padding) is zero: mapped-at-creation memory starts zeroed.
-                }
-                buffer.unmap();
-                Ok::<_, Error>(buffer)
-            };
-            let et = levels_buffer("texsyn et", &|l| bytemuck::cast_slice(&l.et))?;
-            let qe = levels_buffer("texsyn qe", &|l| bytemuck::cast_slice(&l.qe))?;
-            let offsets = levels_buffer("texsyn offsets", &|l| bytemuck::cast_slice(&l.offsets))?;
+            // `qe` waits for a synthesis that reads it (`qe_for`).
+            let et = levels_buffer(ctx, a, "texsyn et", &|l| bytemuck::cast_slice(&l.et))?;
+            let offsets =
+                levels_buffer(ctx, a, "texsyn offsets", &|l| bytemuck::cast_slice(&l.offsets))?;
             let init = |label: &str, contents: &[u8]| {
                 device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                     label: Some(label),
@@ -770,7 +782,8 @@ impl GpuSynthesizer {
                 pipelines: ctx.pass_pipelines(),
                 no_velocity: init("texsyn no velocity", &[0u8; 16]),
                 et,
-                qe,
+                qe: Mutex::new(None),
+                no_qe: init("texsyn qe (not uploaded)", &[0u8; 16]),
                 offsets,
                 proj,
                 colors,
@@ -785,6 +798,26 @@ impl GpuSynthesizer {
 
     pub fn analysis(&self) -> &Analysis {
         &self.analysis
+    }
+
+    /// The `qe` binding for `schedule`: the uploaded tables (uploaded now if not yet)
+    /// when a correction of it uses the projected distance, else whatever is there (a
+    /// 16-byte stand-in until the first upload). Called inside the caller's error scope
+    /// ([`GpuContext::scoped`]): a buffer the device cannot create is reported there (the
+    /// stand-in is bound meanwhile and the upload tried again next time).
+    fn qe_for(&self, ctx: &GpuContext, schedule: &[Dispatch]) -> wgpu::Buffer {
+        let mut qe = self.qe.lock().unwrap_or_else(|e| e.into_inner());
+        let needed = schedule.iter().any(|d| {
+            matches!(d.kind, PassKind::Correct | PassKind::CorrectAniso)
+                && d.params.full_distance == 0
+        });
+        if needed && qe.is_none() {
+            *qe = levels_buffer(ctx, &self.analysis, "texsyn qe", &|l| {
+                bytemuck::cast_slice(&l.qe)
+            })
+            .ok();
+        }
+        qe.clone().unwrap_or_else(|| self.no_qe.clone())
     }
 
     /// The finest level's quarter-pixel tables, built and uploaded now if not yet
@@ -1068,7 +1101,8 @@ impl GpuSynthesizer {
                     ],
                 })
             };
-        let tables = (&self.et, &self.qe);
+        let qe = self.qe_for(ctx, schedule);
+        let tables = (&self.et, &qe);
         let bind_group = make_bind_group(&self.colors, target, tables);
         let fine_group = fine.map(|f| (f, make_bind_group(&self.colors, target, (&f.et, &f.qe))));
         {
