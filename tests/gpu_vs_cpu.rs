@@ -352,6 +352,37 @@ fn every_distance_mode_matches_cpu() {
     }
 }
 
+/// `qe` is uploaded with the first synthesis that reads it (the projected distance): one
+/// synthesizer, first a synthesis without it, then ones that read it, then the first again.
+#[test]
+fn qe_uploads_with_the_first_synthesis_that_reads_it() {
+    let a = analysis(false, 2);
+    let gpu = GpuSynthesizer::new(ctx(), a.clone()).unwrap();
+    let base = SynthParams {
+        width: 40,
+        height: 36,
+        seed: 9,
+        ..Default::default()
+    };
+    let projected = SynthParams {
+        distance: texsyn::DistanceMode::Projected,
+        ..base.clone()
+    };
+    // Mixed: projected on the finest level only, once it is corrected.
+    let finest = SynthParams {
+        finest_passes: 1,
+        ..base.clone()
+    };
+    let mut outputs = Vec::new();
+    for params in [&base, &projected, &finest, &base] {
+        let out = gpu.synthesize_to_host(ctx(), params).unwrap();
+        assert_eq!(out, synthesize_cpu(&a, params).unwrap(), "{params:?}");
+        outputs.push(out);
+    }
+    assert_ne!(outputs[0].coords, outputs[1].coords);
+    assert_eq!(outputs[0], outputs[3]);
+}
+
 #[test]
 fn exemplar_too_large_for_the_device_is_a_clear_error() {
     let e = texsyn::gpu::synth::check_exemplar_fits(ctx(), 16384, 16384, 2)
