@@ -1265,15 +1265,27 @@ impl GpuSynthesizer {
     /// submission is recorded (see [`GpuContext::prepare_pipelines`]), e.g. to time them
     /// apart or to build them while the application does other work. An anisometric
     /// plan's Jacobian field is rasterized and uploaded too (kept for the synthesis that
-    /// follows with the same field and regions). Optional; the synthesis is the same
-    /// either way.
+    /// follows with the same field and regions), and so is the `qe` table when its
+    /// corrections read it. Optional; the synthesis is the same either way.
     pub fn prepare(&self, ctx: &GpuContext, params: &SynthParams) -> Result<()> {
         // The Jacobian field (20-30 ms at 512x512 on the host) alongside, which the
-        // synthesis then finds in its cache.
+        // synthesis then finds in its cache, and beside it the `qe` table if a
+        // correction reads it (anisometric synthesis: 15-25 ms for a 400 px exemplar).
         self.pipelines
             .prepare_plan(ctx, &self.analysis, params, |plan| {
-                ctx.scoped(|| {
-                    self.jacobian_buffers(ctx, plan);
+                std::thread::scope(|s| {
+                    let qe = s.spawn(|| {
+                        ctx.scoped(|| {
+                            self.qe_for(ctx, &plan.schedule(&self.analysis));
+                        })
+                    });
+                    let jacobians = ctx.scoped(|| {
+                        self.jacobian_buffers(ctx, plan);
+                    });
+                    let qe = qe
+                        .join()
+                        .unwrap_or_else(|_| Err(Error::Gpu("uploading qe panicked".into())));
+                    jacobians.and(qe)
                 })
             })
     }
