@@ -32,7 +32,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
     }
     // Rounded to nearest; weight is 3..7.
-    let v = (sum + vec4<u32>(weight / 2u)) / vec4<u32>(weight);
+    let v = mean_rounded(sum, weight);
     textureStore(out_color, p, vec4<f32>(v) / 255.0);
 }
 

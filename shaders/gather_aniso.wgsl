@@ -56,7 +56,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             }
         }
         // Rounded to nearest; weight is 3..7.
-        v = (sum + vec4<i32>(weight / 2)) / vec4<i32>(weight);
+        v = vec4<i32>(mean_rounded(vec4<u32>(sum), u32(weight)));
     }
     textureStore(out_color, p, vec4<f32>(v) / 255.0);
 }

@@ -179,6 +179,21 @@ fn wrap(c: i32, n: i32) -> i32 {
     return r;
 }
 
+// Rounded-to-nearest mean of the gathers' colour sums: (x + w / 2) / w (x up to 7 * 255,
+// weights w of 3..7). CPU Vulkan drivers scalarize integer division (4 per output pixel
+// here), so the quotient comes from a float division and is corrected by one step each
+// way, as in wrap(): the same integer quotient as the CPU mirror's, however the device
+// rounds the float division.
+fn mean_rounded(x: vec4<u32>, w: u32) -> vec4<u32> {
+    let n = vec4<i32>(x + vec4<u32>(w >> 1u));
+    let d = i32(w);
+    var q = vec4<i32>(floor(vec4<f32>(n) / f32(d)));
+    let r = n - q * d;
+    q += select(vec4<i32>(0), vec4<i32>(1), r >= vec4<i32>(d));
+    q -= select(vec4<i32>(0), vec4<i32>(1), r < vec4<i32>(0));
+    return vec4<u32>(q);
+}
+
 // In units of 2^-coord_frac exemplar pixels.
 fn fit_coord(c: vec2<i32>) -> vec2<i32> {
     let f = vec2<u32>(params.coord_frac);
