@@ -740,8 +740,9 @@ fn padded<T: bytemuck::Pod>(data: &[T]) -> Vec<u8> {
 }
 
 impl GpuSynthesizer {
-    /// Uploads the analysis and builds the pipelines. Fails with a clear error if the
-    /// exemplar tables exceed the device's buffer limits.
+    /// Uploads the analysis (its `qe` tables wait for the first synthesis that reads
+    /// them, or for [`Self::prepare`]). Fails with a clear error if the exemplar tables
+    /// exceed the device's buffer limits.
     pub fn new(ctx: &GpuContext, analysis: Arc<Analysis>) -> Result<Self> {
         let a = &*analysis;
         a.validate()?;
