@@ -187,44 +187,37 @@ fn expect_bad(bytes: &[u8], needles: &[&str], max_alloc: usize) -> String {
         largest <= max_alloc,
         "decoding allocated {largest} bytes at once for {reason:?}"
     );
-    // The same bytes as a file: `load` streams well-formed files and falls back to the
-    // in-memory decoder for anything else, so it must give the same error, and it may
-    // allocate at most the file and its read buffer on top.
+    // The same bytes as a file, through both file readers: the same error. `load`
+    // streams well-formed files and falls back to the in-memory decoder for anything
+    // else, so it may allocate at most the file and its read buffer on top;
+    // `load_mapped` reads the file in place, no copy of it.
     let dir = TempDir::new("bad");
     let path = dir.path().join("bad.tsa");
     std::fs::write(&path, bytes).unwrap();
-    let (r, largest) = largest_alloc(|| Analysis::load(&path));
-    match r {
-        Err(Error::BadAnalysisFile {
-            path: at,
-            reason: r,
-        }) => {
-            assert_eq!(at, path);
-            assert_eq!(r, reason, "load and from_bytes disagree");
-        }
-        other => panic!("load: expected BadAnalysisFile, got {other:?}"),
-    }
-    assert!(
-        largest <= max_alloc.max(bytes.len()) + (1 << 16) + 4096,
-        "load allocated {largest} bytes at once for {reason:?}"
-    );
-    // Mapped: the same error, and no copy of the file.
+    type Loader = fn(&Path) -> Result<Analysis, Error>;
     // SAFETY: the file is this test's own and stays as it is.
-    let (r, largest) = largest_alloc(|| unsafe { Analysis::load_mapped(&path) });
-    match r {
-        Err(Error::BadAnalysisFile {
-            path: at,
-            reason: r,
-        }) => {
-            assert_eq!(at, path);
-            assert_eq!(r, reason, "load_mapped and from_bytes disagree");
+    let mapped: Loader = |p| unsafe { Analysis::load_mapped(p) };
+    let readers: [(&str, Loader, usize); 2] = [
+        ("load", Analysis::load, max_alloc.max(bytes.len()) + (1 << 16) + 4096),
+        ("load_mapped", mapped, max_alloc + 4096),
+    ];
+    for (name, load, limit) in readers {
+        let (r, largest) = largest_alloc(|| load(&path));
+        match r {
+            Err(Error::BadAnalysisFile {
+                path: at,
+                reason: r,
+            }) => {
+                assert_eq!(at, path);
+                assert_eq!(r, reason, "{name} and from_bytes disagree");
+            }
+            other => panic!("{name}: expected BadAnalysisFile, got {other:?}"),
         }
-        other => panic!("load_mapped: expected BadAnalysisFile, got {other:?}"),
+        assert!(
+            largest <= limit,
+            "{name} allocated {largest} bytes at once for {reason:?}"
+        );
     }
-    assert!(
-        largest <= max_alloc + 4096,
-        "load_mapped allocated {largest} bytes at once for {reason:?}"
-    );
     reason
 }
 
