@@ -198,7 +198,11 @@ fn expect_bad(bytes: &[u8], needles: &[&str], max_alloc: usize) -> String {
     // SAFETY: the file is this test's own and stays as it is.
     let mapped: Loader = |p| unsafe { Analysis::load_mapped(p) };
     let readers: [(&str, Loader, usize); 2] = [
-        ("load", Analysis::load, max_alloc.max(bytes.len()) + (1 << 16) + 4096),
+        (
+            "load",
+            Analysis::load,
+            max_alloc.max(bytes.len()) + (1 << 16) + 4096,
+        ),
         ("load_mapped", mapped, max_alloc + 4096),
     ];
     for (name, load, limit) in readers {

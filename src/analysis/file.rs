@@ -55,8 +55,7 @@ use std::sync::Arc;
 
 use super::feature::{FEATURE_CLAMP_RANGE, MAX_FEATURE_WEIGHT};
 use super::{
-    level_count, Analysis, AppearanceSpace, FeatureInfo, FeatureMode, LevelData, Table, DIM,
-    MAX_K,
+    level_count, Analysis, AppearanceSpace, FeatureInfo, FeatureMode, LevelData, Table, DIM, MAX_K,
 };
 use crate::error::{Error, Result};
 
@@ -644,8 +643,7 @@ impl Input for Reader<'_> {
         what: &str,
     ) -> std::result::Result<Table<[i16; N]>, String> {
         // In place where the file's bytes are the values (little-endian) and aligned.
-        if let (Some((map, at)), true, true) =
-            (self.map, bytes > 0, cfg!(target_endian = "little"))
+        if let (Some((map, at)), true, true) = (self.map, bytes > 0, cfg!(target_endian = "little"))
         {
             if bytes <= self.bytes.len() - self.pos {
                 if let Some(t) = Table::mapped(map.clone(), at + self.pos, bytes / (2 * N)) {

@@ -79,9 +79,9 @@ impl<T: bytemuck::Pod> Deref for Table<T> {
     fn deref(&self) -> &[T] {
         match &self.repr {
             Repr::Owned(v) => v,
-            Repr::Mapped { map, offset, len } => bytemuck::cast_slice(
-                &map[*offset..*offset + *len * std::mem::size_of::<T>()],
-            ),
+            Repr::Mapped { map, offset, len } => {
+                bytemuck::cast_slice(&map[*offset..*offset + *len * std::mem::size_of::<T>()])
+            }
         }
     }
 }

@@ -763,8 +763,9 @@ impl GpuSynthesizer {
             }
             // `qe` waits for a synthesis that reads it (`qe_for`).
             let et = levels_buffer(ctx, a, "texsyn et", &|l| bytemuck::cast_slice(&l.et))?;
-            let offsets =
-                levels_buffer(ctx, a, "texsyn offsets", &|l| bytemuck::cast_slice(&l.offsets))?;
+            let offsets = levels_buffer(ctx, a, "texsyn offsets", &|l| {
+                bytemuck::cast_slice(&l.offsets)
+            })?;
             let init = |label: &str, contents: &[u8]| {
                 device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                     label: Some(label),
