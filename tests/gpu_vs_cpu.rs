@@ -2,9 +2,9 @@
 
 use std::sync::{Arc, OnceLock};
 
-use texsyn::analysis::{analyze, Analysis, AnalysisOptions, Exemplar};
+use texsyn::analysis::{analyze, level_searched, Analysis, AnalysisOptions, Exemplar};
 use texsyn::gpu::{synth::GpuSynthesizer, GpuContext};
-use texsyn::passes::plan::{PassKind, SynthPlan};
+use texsyn::passes::plan::{PassKind, SynthPlan, UNSEARCHED_PASSES};
 use texsyn::passes::{run_cpu, synthesize_cpu};
 use texsyn::SynthParams;
 
@@ -578,12 +578,20 @@ fn similarity_sets_on_every_nth_pass() {
             // Four subpasses per pass.
             let passes: Vec<i32> = k.chunks(4).map(|c| c[0]).collect();
             assert!(k.chunks(4).all(|c| c.iter().all(|&x| x == c[0])));
-            let want = if level + 1 == levels.len() {
-                &pattern[..2]
+            // The finest level has its 2 passes; levels whose neighbourhood spans the
+            // exemplar at most UNSEARCHED_PASSES; the others 4.
+            let n = if level + 1 == levels.len() {
+                2
+            } else if level_searched(a.width, a.height, a.levels[level].spacing) {
+                4
             } else {
-                &pattern[..]
+                UNSEARCHED_PASSES as usize
             };
-            assert_eq!(passes, want, "sets every {sets_every}, level {level}");
+            assert_eq!(
+                passes,
+                &pattern[..n],
+                "sets every {sets_every}, level {level}"
+            );
         }
     }
     for bad in [0, 17] {

@@ -388,6 +388,15 @@ pub fn level_margin(width: u32, height: u32, spacing: u32, tileable: bool) -> u3
     }
 }
 
+/// Whether a level of `spacing` has similarity sets of its own: its 5x5 neighbourhood
+/// (`4 * spacing` wide) is narrower than the exemplar. Wider, the level is a near-constant
+/// blur, its sets would be noise, and the analysis stores zero offsets (every set member
+/// is the pixel itself) without searching; the synthesis corrects it with at most
+/// [`crate::passes::plan::UNSEARCHED_PASSES`] passes.
+pub fn level_searched(width: u32, height: u32, spacing: u32) -> bool {
+    4 * spacing < width.min(height)
+}
+
 pub fn check_exemplar_size(width: u32, height: u32) -> Result<()> {
     if width < MIN_EXEMPLAR_SIZE || height < MIN_EXEMPLAR_SIZE {
         return Err(Error::ExemplarTooSmall {
@@ -694,7 +703,7 @@ pub fn analyze(
         let done = l as u32;
         // Left out where no synthesis reads them (see LevelData::et): level 0, and the
         // finest level without its sets. An unsearched level needs no features either.
-        let searched = |spacing: u32| 4 * spacing < ex.width.min(ex.height);
+        let searched = |spacing: u32| level_searched(ex.width, ex.height, spacing);
         let tables = !(l == 0 || spacing == 1 && !opts.finest_sets);
         let large = ex.width as u64 * ex.height as u64 >= LARGE_EXEMPLAR_PIXELS;
         let t0 = std::time::Instant::now();

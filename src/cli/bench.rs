@@ -51,7 +51,8 @@ pub struct BenchArgs {
           allow_hyphen_values = true, value_parser = super::parse_seed)]
     pub seed: u32,
 
-    /// Correction passes on every level but the finest (0..=16)
+    /// Correction passes on every level but the finest (0..=16; at most 2 on levels whose
+    /// neighbourhood spans the exemplar)
     #[arg(long, value_name = "P", default_value_t = SynthParams::default().passes,
           value_parser = clap::value_parser!(u32).range(0..=16))]
     pub passes: u32,

@@ -65,7 +65,8 @@ pub struct SynthArgs {
           allow_hyphen_values = true, value_parser = parse_copy_budget)]
     pub copy_budget: f32,
 
-    /// Correction passes on every level but the finest (0..=16; each is 4 subpasses)
+    /// Correction passes on every level but the finest (0..=16; each is 4 subpasses). The
+    /// two coarsest corrected levels, whose neighbourhood spans the exemplar, get at most 2
     #[arg(long, value_name = "P", default_value_t = SynthParams::default().passes,
           value_parser = clap::value_parser!(u32).range(0..=16))]
     pub passes: u32,
