@@ -4,7 +4,7 @@ use std::sync::{Arc, OnceLock};
 
 use texsyn::analysis::{analyze, level_searched, Analysis, AnalysisOptions, Exemplar};
 use texsyn::gpu::{synth::GpuSynthesizer, GpuContext};
-use texsyn::passes::plan::{PassKind, SynthPlan, UNSEARCHED_PASSES};
+use texsyn::passes::plan::{PassKind, SynthPlan, SMALL_SECOND_FINEST_PASSES, UNSEARCHED_PASSES};
 use texsyn::passes::{run_cpu, synthesize_cpu};
 use texsyn::SynthParams;
 
@@ -444,6 +444,9 @@ fn aniso_identity_reproduces_isometric_exactly() {
             height: 31,
             origin: [-7, 5],
             seed: 3,
+            // The same schedule on both sides: by default an isometric synthesis corrects
+            // the second-finest level less than an anisometric one.
+            second_finest_passes: Some(4),
             ..Default::default()
         };
         let identity = Field::Constant {
@@ -578,14 +581,17 @@ fn similarity_sets_on_every_nth_pass() {
             // Four subpasses per pass.
             let passes: Vec<i32> = k.chunks(4).map(|c| c[0]).collect();
             assert!(k.chunks(4).all(|c| c.iter().all(|&x| x == c[0])));
-            // The finest level has its 2 passes; levels whose neighbourhood spans the
-            // exemplar at most UNSEARCHED_PASSES; the others 4.
+            // The finest level has its 2 passes, the second-finest at most
+            // SMALL_SECOND_FINEST_PASSES (a small exemplar), levels whose neighbourhood
+            // spans the exemplar at most UNSEARCHED_PASSES, the others 4.
             let n = if level + 1 == levels.len() {
                 2
-            } else if level_searched(a.width, a.height, a.levels[level].spacing) {
-                4
-            } else {
+            } else if !level_searched(a.width, a.height, a.levels[level].spacing) {
                 UNSEARCHED_PASSES as usize
+            } else if level + 2 == levels.len() {
+                SMALL_SECOND_FINEST_PASSES as usize
+            } else {
+                4
             };
             assert_eq!(
                 passes,

@@ -45,8 +45,9 @@ pub struct SynthParams {
     /// 512x512 on lavapipe with a 512 px exemplar: about 22% less GPU time, 0.81-0.88 of
     /// the time of a whole `synth` from an analysis file; texture energy +2.0 / +0.3 /
     /// +0.0% (full / half / quarter resolution, medians over 14 photos of 256-512 px x 2
-    /// seeds). Not below that size: +4.6 / +0.9 / 0.0% over 13 exemplars of 64-156 px,
-    /// whose synthesis is fast already.
+    /// seeds). Below that size at most [`SMALL_SECOND_FINEST_PASSES`] (3: two passes
+    /// there cost +4.6 / +0.9 / 0.0% over 13 exemplars of 64-156 px, three +0.9 / +0.2 /
+    /// 0.0%).
     pub second_finest_passes: Option<u32>,
     /// Correction passes at the finest level (3/4 of all pixels, so the costly one).
     /// Default 0: the finest level is the coherent upsampling of the next coarser one
@@ -1001,6 +1002,15 @@ impl SynthPlan {
 /// synthesis from a large exemplar (see [`SynthParams::second_finest_passes`]).
 pub const LARGE_SECOND_FINEST_PASSES: u32 = 2;
 
+/// At most this many at the second-finest level of an isometric synthesis from a smaller
+/// exemplar (thirtieth session). There four passes took about half of a 512x512
+/// synthesis's GPU time from the bundled 128 px brick on lavapipe (80-140 ms); three,
+/// with the margins they shrink, 48-49 ms (`bench --per-pass`, 2 alternating runs). Texture
+/// energy +0.9 / +0.2 / 0.0% (full / half / quarter resolution, medians over 13 exemplars
+/// of 64-156 px x seeds 1-2; worst +3.7 / +0.8 / +0.1%), histogram distance 1.000 (worst
+/// +6.9%, the leopard).
+pub const SMALL_SECOND_FINEST_PASSES: u32 = 3;
+
 /// At most this many correction passes on a level without similarity sets of its own
 /// ([`crate::analysis::level_searched`]: its neighbourhood spans the exemplar, e.g. the
 /// two coarsest corrected levels of a 400 or 512 px exemplar, or of a 128 px one).
@@ -1063,10 +1073,12 @@ pub fn passes_at(params: &SynthParams, level: u32, last: u32, exemplar: Exemplar
 
 /// The second-finest level's passes when [`SynthParams::second_finest_passes`] is `None`.
 pub fn default_second_finest_passes(passes: u32, anisometric: bool, exemplar_pixels: u64) -> u32 {
-    if !anisometric && exemplar_pixels >= crate::analysis::LARGE_EXEMPLAR_PIXELS {
+    if anisometric {
+        passes
+    } else if exemplar_pixels >= crate::analysis::LARGE_EXEMPLAR_PIXELS {
         passes.min(LARGE_SECOND_FINEST_PASSES)
     } else {
-        passes
+        passes.min(SMALL_SECOND_FINEST_PASSES)
     }
 }
 
@@ -1074,7 +1086,7 @@ pub fn default_second_finest_passes(passes: u32, anisometric: bool, exemplar_pix
 mod tests {
     use super::{
         default_randomness, passes_at, ExemplarShape, SynthParams, LARGE_SECOND_FINEST_PASSES,
-        UNSEARCHED_PASSES,
+        SMALL_SECOND_FINEST_PASSES, UNSEARCHED_PASSES,
     };
     use crate::analysis::LARGE_EXEMPLAR_PIXELS;
     use crate::field::Field;
@@ -1099,7 +1111,8 @@ mod tests {
             (0..4).map(|l| passes_at(p, l, 3, ex)).collect::<Vec<_>>()
         };
         assert_eq!(at(&iso, large), [4, 4, LARGE_SECOND_FINEST_PASSES, 1]);
-        assert_eq!(at(&iso, small), [4, 4, 4, 1]);
+        assert_eq!(at(&iso, small), [4, 4, SMALL_SECOND_FINEST_PASSES, 1]);
+        assert_eq!(SMALL_SECOND_FINEST_PASSES, 3);
         // Never more than the other levels get.
         let one = SynthParams {
             passes: 1,
@@ -1146,13 +1159,14 @@ mod tests {
         };
         let u = UNSEARCHED_PASSES;
         assert_eq!(u, 2);
-        assert_eq!(at(&p, 128, 128, false), [u, u, u, 4, 4, 4, 4, 0]);
+        assert_eq!(at(&p, 128, 128, false), [u, u, u, 4, 4, 4, 3, 0]);
         // The smaller side decides: 129 px wide still leaves spacing 32 unsearched on a
         // 128 px high exemplar, and 129 x 129 searches it.
-        assert_eq!(at(&p, 129, 128, false), [u, u, u, 4, 4, 4, 4, 0]);
-        assert_eq!(at(&p, 129, 129, false), [u, u, 4, 4, 4, 4, 4, 0]);
-        // With a feature channel every level gets its passes.
-        assert_eq!(at(&p, 128, 128, true), [4, 4, 4, 4, 4, 4, 4, 0]);
+        assert_eq!(at(&p, 129, 128, false), [u, u, u, 4, 4, 4, 3, 0]);
+        assert_eq!(at(&p, 129, 129, false), [u, u, 4, 4, 4, 4, 3, 0]);
+        // With a feature channel every level gets its passes (the second-finest 3, as
+        // SMALL_SECOND_FINEST_PASSES gives it).
+        assert_eq!(at(&p, 128, 128, true), [4, 4, 4, 4, 4, 4, 3, 0]);
         // A cap, never more passes than asked for.
         let one = SynthParams {
             passes: 1,
