@@ -234,7 +234,8 @@ impl SessionBuilder {
     }
 
     /// Correction passes at the second-finest level (default: `passes`, in an isometric
-    /// synthesis at most 2 from exemplars of 256x256 px and more, 3 from smaller ones; see
+    /// synthesis at most 2 from exemplars of 256x256 px and more, 3 from smaller ones
+    /// without a feature channel; see
     /// [`SynthParams::second_finest_passes`]).
     pub fn second_finest_passes(mut self, passes: u32) -> Self {
         self.params.second_finest_passes = Some(passes);

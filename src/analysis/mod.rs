@@ -392,7 +392,7 @@ pub fn level_margin(width: u32, height: u32, spacing: u32, tileable: bool) -> u3
 /// (`4 * spacing` wide) is narrower than the exemplar. Wider, the level is a near-constant
 /// blur, its sets would be noise, and the analysis stores zero offsets (every set member
 /// is the pixel itself) without searching; the synthesis corrects it with at most
-/// [`crate::passes::plan::UNSEARCHED_PASSES`] passes.
+/// [`crate::passes::plan::UNSEARCHED_PASSES`] passes (without a feature channel).
 pub fn level_searched(width: u32, height: u32, spacing: u32) -> bool {
     4 * spacing < width.min(height)
 }

@@ -59,7 +59,8 @@ pub struct BenchArgs {
 
     /// Correction passes on the second-finest level (0..=16). Default: --passes, but in an
     /// isometric synthesis (no --field) at most 2 from an exemplar of 256x256 pixels or
-    /// more and at most 3 from a smaller one: that level is most of the GPU time (measured:
+    /// more and at most 3 from a smaller one (without --feature-mask): that level is most
+    /// of the GPU time (measured:
     /// about a fifth less GPU time, texture energy +1-2% at full resolution, the same at
     /// half and quarter)
     #[arg(long, value_name = "P", value_parser = clap::value_parser!(u32).range(0..=16))]
@@ -242,7 +243,7 @@ pub fn run(ui: &Ui, args: BenchArgs) -> CliResult<()> {
             texsyn::passes::plan::default_second_finest_passes(
                 args.passes,
                 args.field.is_some() || file_field.is_some(),
-                synthesizer.analysis().pixel_count(),
+                texsyn::passes::plan::ExemplarShape::of(synthesizer.analysis()),
             )
         }),
         args.finest_passes,

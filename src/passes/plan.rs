@@ -1008,7 +1008,8 @@ pub const LARGE_SECOND_FINEST_PASSES: u32 = 2;
 /// with the margins they shrink, 48-49 ms (`bench --per-pass`, 2 alternating runs). Texture
 /// energy +0.9 / +0.2 / 0.0% (full / half / quarter resolution, medians over 13 exemplars
 /// of 64-156 px x seeds 1-2; worst +3.7 / +0.8 / +0.1%), histogram distance 1.000 (worst
-/// +6.9%, the leopard).
+/// +6.9%, the leopard). Not with a feature channel, whose figures (README, *Controls*)
+/// were measured with four.
 pub const SMALL_SECOND_FINEST_PASSES: u32 = 3;
 
 /// At most this many correction passes on a level without similarity sets of its own
@@ -1053,11 +1054,7 @@ pub fn passes_at(params: &SynthParams, level: u32, last: u32, exemplar: Exemplar
     }
     let passes = if level + 1 == last {
         params.second_finest_passes.unwrap_or_else(|| {
-            default_second_finest_passes(
-                params.passes,
-                params.anisometric(),
-                exemplar.width as u64 * exemplar.height as u64,
-            )
+            default_second_finest_passes(params.passes, params.anisometric(), exemplar)
         })
     } else {
         params.passes
@@ -1072,11 +1069,18 @@ pub fn passes_at(params: &SynthParams, level: u32, last: u32, exemplar: Exemplar
 }
 
 /// The second-finest level's passes when [`SynthParams::second_finest_passes`] is `None`.
-pub fn default_second_finest_passes(passes: u32, anisometric: bool, exemplar_pixels: u64) -> u32 {
+pub fn default_second_finest_passes(
+    passes: u32,
+    anisometric: bool,
+    exemplar: ExemplarShape,
+) -> u32 {
+    let pixels = exemplar.width as u64 * exemplar.height as u64;
     if anisometric {
         passes
-    } else if exemplar_pixels >= crate::analysis::LARGE_EXEMPLAR_PIXELS {
+    } else if pixels >= crate::analysis::LARGE_EXEMPLAR_PIXELS {
         passes.min(LARGE_SECOND_FINEST_PASSES)
+    } else if exemplar.feature {
+        passes
     } else {
         passes.min(SMALL_SECOND_FINEST_PASSES)
     }
@@ -1106,7 +1110,7 @@ mod tests {
             finest_passes: 1,
             ..SynthParams::default()
         };
-        // (params, exemplar pixels) -> passes at levels 0..=3 of a 4-level plan.
+        // (params, exemplar) -> passes at levels 0..=3 of a 4-level plan.
         let at = |p: &SynthParams, ex: ExemplarShape| {
             (0..4).map(|l| passes_at(p, l, 3, ex)).collect::<Vec<_>>()
         };
@@ -1164,9 +1168,8 @@ mod tests {
         // 128 px high exemplar, and 129 x 129 searches it.
         assert_eq!(at(&p, 129, 128, false), [u, u, u, 4, 4, 4, 3, 0]);
         assert_eq!(at(&p, 129, 129, false), [u, u, 4, 4, 4, 4, 3, 0]);
-        // With a feature channel every level gets its passes (the second-finest 3, as
-        // SMALL_SECOND_FINEST_PASSES gives it).
-        assert_eq!(at(&p, 128, 128, true), [4, 4, 4, 4, 4, 4, 3, 0]);
+        // With a feature channel every level gets its passes.
+        assert_eq!(at(&p, 128, 128, true), [4, 4, 4, 4, 4, 4, 4, 0]);
         // A cap, never more passes than asked for.
         let one = SynthParams {
             passes: 1,
