@@ -233,9 +233,9 @@ impl SessionBuilder {
         self
     }
 
-    /// Correction passes at the second-finest level (default: `passes`, in an isometric
-    /// synthesis at most 2 from exemplars of 256x256 px and more, 3 from smaller ones
-    /// without a feature channel; see
+    /// Correction passes at the second-finest level (default: `passes`, at most 2 in an
+    /// isometric synthesis from exemplars of 256x256 px and more, 3 from smaller ones
+    /// without a feature channel, also along a field; see
     /// [`SynthParams::second_finest_passes`]).
     pub fn second_finest_passes(mut self, passes: u32) -> Self {
         self.params.second_finest_passes = Some(passes);

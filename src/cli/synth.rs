@@ -71,10 +71,10 @@ pub struct SynthArgs {
           value_parser = clap::value_parser!(u32).range(0..=16))]
     pub passes: u32,
 
-    /// Correction passes on the second-finest level (0..=16). Default: --passes, but in an
-    /// isometric synthesis (no --field) at most 2 from an exemplar of 256x256 pixels or
-    /// more and at most 3 from a smaller one (without --feature-mask): that level is most
-    /// of the GPU time (measured:
+    /// Correction passes on the second-finest level (0..=16). Default: --passes, but at
+    /// most 2 in an isometric synthesis (no --field) from an exemplar of 256x256 pixels or
+    /// more, and at most 3 from a smaller one (also along --field; not with
+    /// --feature-mask): that level is most of the GPU time (measured:
     /// about a fifth less GPU time, texture energy +1-2% at full resolution, the same at
     /// half and quarter)
     #[arg(long, value_name = "P", value_parser = clap::value_parser!(u32).range(0..=16))]

@@ -195,6 +195,10 @@ impl Advection {
         // correction lowers frame 0's energy, 0.00198 against 0.00214 on gravel), and its
         // region keeps the margin of a corrected level, which the flow carries into view.
         p.finest_passes = p.finest_passes.max(1);
+        // The advected levels' subpass schedule over the frames was measured with every
+        // level's passes: no smaller default at the second-finest level (see
+        // passes::plan::SMALL_SECOND_FINEST_PASSES).
+        p.second_finest_passes.get_or_insert(p.passes);
         p.standalone = false;
         if !p.anisometric() {
             p.field = Some(Field::Constant {

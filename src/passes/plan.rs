@@ -47,7 +47,7 @@ pub struct SynthParams {
     /// +0.0% (full / half / quarter resolution, medians over 14 photos of 256-512 px x 2
     /// seeds). Below that size at most [`SMALL_SECOND_FINEST_PASSES`] (3: two passes
     /// there cost +4.6 / +0.9 / 0.0% over 13 exemplars of 64-156 px, three +0.9 / +0.2 /
-    /// 0.0%).
+    /// 0.0%), also along a field, but not on surfaces or with a feature channel.
     pub second_finest_passes: Option<u32>,
     /// Correction passes at the finest level (3/4 of all pixels, so the costly one).
     /// Default 0: the finest level is the coherent upsampling of the next coarser one
@@ -1008,8 +1008,13 @@ pub const LARGE_SECOND_FINEST_PASSES: u32 = 2;
 /// with the margins they shrink, 48-49 ms (`bench --per-pass`, 2 alternating runs). Texture
 /// energy +0.9 / +0.2 / 0.0% (full / half / quarter resolution, medians over 13 exemplars
 /// of 64-156 px x seeds 1-2; worst +3.7 / +0.8 / +0.1%), histogram distance 1.000 (worst
-/// +6.9%, the leopard). Not with a feature channel, whose figures (README, *Controls*)
-/// were measured with four.
+/// +6.9%, the leopard). Along fields too (not on surfaces, nor in advection, which pins
+/// its passes): 13 exemplars x `swirl`, `perspective` and `rotate:30` (384x384, seed 1)
+/// gave texture energy 1.001 / 1.000 / 1.000, histogram distance 1.000 and Jacobian
+/// fidelity (within 15%, all pixels / away from seams) 0.999 / 1.000 of four passes'
+/// (medians; worst energy +0.7%, fidelity -2.9 / -0.9%), and a 512x512 swirl from the
+/// bundled gravel took 181-189 ms instead of 207-213 ms (`bench`, 2 alternating runs).
+/// Not with a feature channel, whose figures (README, *Controls*) were measured with four.
 pub const SMALL_SECOND_FINEST_PASSES: u32 = 3;
 
 /// At most this many correction passes on a level without similarity sets of its own
@@ -1054,7 +1059,12 @@ pub fn passes_at(params: &SynthParams, level: u32, last: u32, exemplar: Exemplar
     }
     let passes = if level + 1 == last {
         params.second_finest_passes.unwrap_or_else(|| {
-            default_second_finest_passes(params.passes, params.anisometric(), exemplar)
+            default_second_finest_passes(
+                params.passes,
+                params.anisometric(),
+                params.surface.is_some(),
+                exemplar,
+            )
         })
     } else {
         params.passes
@@ -1068,17 +1078,23 @@ pub fn passes_at(params: &SynthParams, level: u32, last: u32, exemplar: Exemplar
     }
 }
 
-/// The second-finest level's passes when [`SynthParams::second_finest_passes`] is `None`.
+/// The second-finest level's passes when [`SynthParams::second_finest_passes`] is `None`
+/// (`anisometric`: along a field or on a surface; `surface`: atlas synthesis).
 pub fn default_second_finest_passes(
     passes: u32,
     anisometric: bool,
+    surface: bool,
     exemplar: ExemplarShape,
 ) -> u32 {
     let pixels = exemplar.width as u64 * exemplar.height as u64;
-    if anisometric {
+    if surface {
         passes
     } else if pixels >= crate::analysis::LARGE_EXEMPLAR_PIXELS {
-        passes.min(LARGE_SECOND_FINEST_PASSES)
+        if anisometric {
+            passes
+        } else {
+            passes.min(LARGE_SECOND_FINEST_PASSES)
+        }
     } else if exemplar.feature {
         passes
     } else {
@@ -1123,7 +1139,9 @@ mod tests {
             ..iso.clone()
         };
         assert_eq!(at(&one, large), [1, 1, 1, 1]);
-        // Along a field (and so on surfaces and in advection), every level alike.
+        // Along a field, every level alike from a large exemplar, and three passes at the
+        // second-finest level from a small one (surfaces keep every level's passes,
+        // advection pins them: Advection::synthesis_params).
         let field = SynthParams {
             field: Some(Field::Constant {
                 angle: 0.3,
@@ -1133,6 +1151,9 @@ mod tests {
             ..iso.clone()
         };
         assert_eq!(at(&field, large), [4, 4, 4, 1]);
+        assert_eq!(at(&field, small), [4, 4, SMALL_SECOND_FINEST_PASSES, 1]);
+        let advected = crate::gpu::advect::Advection::synthesis_params(&field);
+        assert_eq!(at(&advected, small), [4, 4, 4, 1]);
         // An explicit count wins, either way.
         for n in [0, 3, 7] {
             let p = SynthParams {
