@@ -839,3 +839,51 @@ fn advection_frames_take_turns_with_the_similarity_sets() {
         }
     }
 }
+
+/// Every correction of an advection frame's finest level reads the finest level's
+/// quarter-pixel tables: the plan must recognize it although the coarse levels store no
+/// tables (their offsets skip them). Until the thirty-first session the GPU path took
+/// `(levels - 1) w h` for the finest level's offset, which stopped matching when level
+/// 0 lost its tables, and the frames silently interpolated four texels per read (the
+/// same bytes, about 1.4x the frame time at 512x512).
+#[test]
+fn advection_frames_read_the_finest_quarter_tables() {
+    for size in [32u32, 64] {
+        let ex = common::gravel_crop(size);
+        let a = analyze(&ex, &AnalysisOptions::default(), |_| {}).unwrap();
+        let finest = a.levels.len() - 1;
+        let o = AdvectOptions::default();
+        assert!(o.quarter_reads, "the default frames read quarter pixels");
+        let params = Advection::synthesis_params(&SynthParams {
+            width: 48,
+            height: 40,
+            ..Default::default()
+        });
+        let plan = SynthPlan::new(&a, &params).unwrap();
+        for frame in 0..4u64 {
+            let s = plan.advect_schedule(&a, &o, frame);
+            let corrections: Vec<_> = s
+                .iter()
+                .filter(|d| d.kind == texsyn::passes::plan::PassKind::CorrectAniso)
+                .collect();
+            assert!(corrections.iter().any(|d| d.level == finest));
+            for d in corrections {
+                assert_eq!(
+                    d.reads_quarter_tables(&a),
+                    d.level == finest,
+                    "exemplar {size}, frame {frame}, level {}",
+                    d.level
+                );
+            }
+        }
+        // The exact reads interpolate at the position itself: no tables.
+        let exact = AdvectOptions {
+            quarter_reads: false,
+            ..o
+        };
+        assert!(plan
+            .advect_schedule(&a, &exact, 0)
+            .iter()
+            .all(|d| !d.reads_quarter_tables(&a)));
+    }
+}

@@ -1023,16 +1023,7 @@ impl GpuSynthesizer {
         // Corrections that read quarter pixels at the finest level read them from its
         // supersampled tables when those fit (a second bind group: the tables replace
         // `et` and `qe`, so no binding is added to the layout).
-        let finest_base = {
-            let a = &*self.analysis;
-            (a.levels.len().saturating_sub(1) as u64 * a.width as u64 * a.height as u64) as u32
-        };
-        let fine_dispatch = |d: &Dispatch| {
-            d.kind == PassKind::CorrectAniso
-                && d.params.quarter != 0
-                && d.params.full_distance == 0
-                && d.params.et_base == finest_base
-        };
+        let fine_dispatch = |d: &Dispatch| d.reads_quarter_tables(&self.analysis);
         let fine = schedule
             .iter()
             .any(fine_dispatch)

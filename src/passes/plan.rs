@@ -662,6 +662,23 @@ impl Dispatch {
             PassKind::Advect | PassKind::Distortion => [p.size[0] as u32, p.size[1] as u32],
         }
     }
+
+    /// Whether this dispatch may read the finest level's quarter-pixel tables
+    /// (`crate::gpu::synth`'s fine tables) instead of interpolating `et` and `qe`: an
+    /// anisometric correction of the finest level with the projected distance that reads
+    /// quarter pixels (advection frames). The finest level is recognized by its table
+    /// offset, [`Analysis::table_base`], which skips levels without tables: until the
+    /// thirty-first session the GPU path compared it with `(levels - 1) w h`, which
+    /// stopped matching when level 0 lost its tables (twenty-fifth session), so the
+    /// frames interpolated four texels per read (the same values, about 1.3x the time).
+    pub fn reads_quarter_tables(&self, analysis: &Analysis) -> bool {
+        let finest = analysis.levels.len().saturating_sub(1);
+        self.kind == PassKind::CorrectAniso
+            && self.params.quarter != 0
+            && self.params.full_distance == 0
+            && self.level == finest
+            && self.params.et_base as usize == analysis.table_base(finest)
+    }
 }
 
 /// Correction subpass order (absolute parities).
