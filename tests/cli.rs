@@ -283,6 +283,7 @@ fn synth_analyze_and_eval() {
         .unwrap_or_else(|e| panic!("eval printed invalid JSON ({e}):\n{json}"));
     for (section, keys) in [
         ("texture_energy", &["full", "half", "quarter"][..]),
+        ("texture_energy_any_phase", &["full", "half", "quarter"][..]),
         ("histogram_emd", &["mean"][..]),
         (
             "verbatim",

@@ -4,8 +4,9 @@
 use std::time::Instant;
 
 use texsyn::quality::{
-    evaluate, histogram_distance, layout_repetition, multiscale_energy, shuffled_baseline,
-    texture_energy, texture_energy_exact, verbatim_stats, CoordMap, FloatImage, DEFAULT_RADIUS,
+    coarse_energy_any_phase, evaluate, histogram_distance, layout_repetition, multiscale_energy,
+    shuffled_baseline, texture_energy, texture_energy_any, texture_energy_exact, verbatim_stats,
+    CoordMap, FloatImage, DEFAULT_RADIUS,
 };
 
 struct Rng(u64);
@@ -106,6 +107,54 @@ fn exemplar_against_itself_has_zero_energy() {
         let m = multiscale_energy(&ex, &ex, 3).unwrap();
         assert!(m.iter().all(|v| v.abs() < 1e-12), "{m:?}");
     }
+}
+
+/// A verbatim copy taken at an odd offset is made of exemplar windows at every scale, but
+/// downsampling from its origin puts its 2x2 blocks across the exemplar's: the grid
+/// figures see errors, the any-phase ones must not.
+#[test]
+fn coarse_energy_does_not_depend_on_the_copy_offset() {
+    // Pixel-scale detail, where the downsampling grid matters most.
+    let mut rng = Rng(40);
+    let (w, h) = (96u32, 88u32);
+    let noise: Vec<f32> = (0..w * h).map(|_| rng.f32()).collect();
+    let ex = FloatImage::new(w, h, 1, noise).unwrap();
+    for (dx, dy) in [(1, 0), (0, 1), (1, 1), (2, 3), (3, 2)] {
+        let out = ex.crop(dx, dy, w - 4, h - 4).unwrap();
+        let grid = multiscale_energy(&ex, &out, 3).unwrap();
+        let [half, quarter] = coarse_energy_any_phase(&ex, &out, 3).unwrap();
+        assert!(
+            grid[0] < 1e-12,
+            "full resolution: a verbatim copy, {grid:?}"
+        );
+        assert!(
+            half < 1e-12 && quarter < 1e-12,
+            "offset ({dx}, {dy}): {half} {quarter}"
+        );
+        // The grid figure sees the offset at half resolution when it is odd, at quarter
+        // resolution whenever it is not a multiple of 4.
+        if dx % 2 == 1 || dy % 2 == 1 {
+            assert!(grid[1] > 1e-3, "offset ({dx}, {dy}): grid half {grid:?}");
+        }
+        assert!(grid[2] > 1e-3, "offset ({dx}, {dy}): grid quarter {grid:?}");
+    }
+    // An aligned copy scores zero both ways, and the any-phase figure is never above the
+    // grid one (its exemplar windows include the grid's).
+    let out = ex.crop(4, 8, w - 8, h - 16).unwrap();
+    let grid = multiscale_energy(&ex, &out, 3).unwrap();
+    assert!(grid.iter().all(|v| *v < 1e-12), "{grid:?}");
+    let other = FloatImage::new(64, 64, 1, (0..64 * 64).map(|_| rng.f32()).collect()).unwrap();
+    let grid = multiscale_energy(&ex, &other, 3).unwrap();
+    let any = coarse_energy_any_phase(&ex, &other, 3).unwrap();
+    assert!(
+        any[0] > 0.0 && any[0] <= grid[1] && any[1] <= grid[2],
+        "{grid:?} {any:?}"
+    );
+    // The union is the per-window minimum over its images.
+    let e1 = texture_energy(&ex, &other, 3).unwrap();
+    let both = texture_energy_any(&[ex.clone(), other.clone()], &other, 3).unwrap();
+    assert!(both < 1e-12 && e1 > 0.0, "{both} {e1}");
+    assert!(texture_energy_any(&[], &other, 3).is_err());
 }
 
 #[test]
@@ -463,6 +512,7 @@ fn report_and_json() {
     println!("{json}");
     for key in [
         "\"texture_energy\":{\"full\":",
+        "\"texture_energy_any_phase\":{\"full\":",
         "\"half\":",
         "\"quarter\":",
         "\"histogram_emd\":{\"per_channel\":[",

@@ -83,23 +83,28 @@ def main():
             "file": statistics.median(t_file),
             "energy": [q["texture_energy"][k] / qt["texture_energy"][k]
                        for k in ("full", "half", "quarter")],
+            "energy_any": [q["texture_energy_any_phase"][k] / qt["texture_energy_any_phase"][k]
+                           for k in ("half", "quarter")],
             "hist": q["histogram_emd"]["mean"] / qt["histogram_emd"]["mean"],
             "copy": q["verbatim"]["largest_region_fraction"],
         })
     print(f"| exemplar | texture-synthesis | texsyn from the image | from a file "
           f"| speed-up (image / file) | energy ratio full / half / quarter "
-          f"| histogram distance ratio | largest verbatim copy |")
-    print("|---|---|---|---|---|---|---|---|")
+          f"| any-phase half / quarter | histogram distance ratio | largest verbatim copy |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         e = " / ".join(f"{v:.3f}" for v in r["energy"])
+        a = " / ".join(f"{v:.3f}" for v in r["energy_any"])
         print(f"| {r['name']} | {r['ts']:.2f} s | {r['img']:.3f} s | {r['file']:.3f} s "
-              f"| {r['ts'] / r['img']:.1f}x / {r['ts'] / r['file']:.1f}x | {e} "
+              f"| {r['ts'] / r['img']:.1f}x / {r['ts'] / r['file']:.1f}x | {e} | {a} "
               f"| {r['hist']:.3f} | {r['copy']:.3f} |")
     med = statistics.median
     print()
     print(f"medians over {len(rows)}: speed-up {med([r['ts'] / r['img'] for r in rows]):.1f}x "
           f"(whole process) / {med([r['ts'] / r['file'] for r in rows]):.1f}x (from a file); "
           f"energy " + " / ".join(f"{med([r['energy'][i] for r in rows]):.3f}" for i in range(3))
+          + "; any-phase " + " / ".join(f"{med([r['energy_any'][i] for r in rows]):.3f}"
+                                        for i in range(2))
           + f"; histogram {med([r['hist'] for r in rows]):.3f}x; "
           f"largest copy at most {max(r['copy'] for r in rows):.3f}")
 

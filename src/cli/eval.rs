@@ -14,7 +14,11 @@ use super::{fail, CliResult, TileArgs, Ui};
     long_about = "Print quality figures of a synthesized image against its exemplar as JSON on stdout.\n\n\
                   texture_energy: mean squared difference of each 7x7 output neighbourhood to the \
                   nearest exemplar neighbourhood, at full, half and quarter resolution (null \
-                  where the images are too small); histogram_emd: earth mover's distance \
+                  where the images are too small; both downsampled from their origin); \
+                  texture_energy_any_phase: the same, with the output's half and quarter \
+                  resolution windows matched against the exemplar downsampled at every grid \
+                  offset (4 and 16), so that the figures do not swing with the parity of where \
+                  large patches were copied from; histogram_emd: earth mover's distance \
                   between the colour histograms, per channel and mean; verbatim (with \
                   --coords): how much of the output is verbatim copy of the exemplar \
                   (coherent neighbour pairs, largest copied region), else null; repetition \
