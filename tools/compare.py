@@ -51,6 +51,9 @@ def main():
     ap.add_argument("--size", type=int, default=512)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--rounds", type=int, default=3, help="texsyn runs per setting")
+    ap.add_argument("--ts-runs", type=int, default=1,
+                    help="texture-synthesis runs per exemplar (its outputs vary from run to "
+                         "run): its time is their median, its quality figures their mean")
     ap.add_argument("--extra", default="", help="extra texsyn synth options, space-separated")
     args = ap.parse_args()
     extra = args.extra.split()
@@ -64,18 +67,28 @@ def main():
         out_file = os.path.join(work, name + "_file.png")
         coords = os.path.join(work, name + ".exr")
         out_ts = os.path.join(work, name + "_ts.png")
-        print(f"{name}: analysis, texsyn x{args.rounds} x 2, texture-synthesis", file=sys.stderr)
+        print(f"{name}: analysis, texsyn x{args.rounds} x 2, texture-synthesis x{args.ts_runs}",
+              file=sys.stderr)
         run([args.texsyn, "analyze", "-q", ex, "-o", tsa])
         synth = [args.texsyn, "synth", "-q", "--size", size, "--seed", str(args.seed)] + extra
         t_img, t_file = [], []
         for _ in range(args.rounds):
             t_img.append(run(synth[:2] + [ex, "-o", out_img] + synth[2:])[0])
             t_file.append(run(synth[:2] + [tsa, "-o", out_file] + synth[2:])[0])
-        t_ts = run([args.ts, "--out-size", size, "--seed", str(args.seed), "-o", out_ts,
-                    "generate", ex])[0]
+        t_ts, qts = [], []
+        for _ in range(max(1, args.ts_runs)):
+            t_ts.append(run([args.ts, "--out-size", size, "--seed", str(args.seed), "-o",
+                             out_ts, "generate", ex])[0])
+            qts.append(evaluate(args.texsyn, ex, out_ts))
+        t_ts = statistics.median(t_ts)
+        qt = {
+            section: {k: statistics.mean(r[section][k] for r in qts) for k in keys}
+            for section, keys in (("texture_energy", ("full", "half", "quarter")),
+                                  ("texture_energy_any_phase", ("half", "quarter")),
+                                  ("histogram_emd", ("mean",)))
+        }
         run(synth[:2] + [tsa, "-o", out_file, "--coords-out", coords] + synth[2:])
         q = evaluate(args.texsyn, ex, out_file, coords)
-        qt = evaluate(args.texsyn, ex, out_ts)
         rows.append({
             "name": name,
             "ts": t_ts,
