@@ -2,8 +2,8 @@
 """Times and scores texsyn against Embark's `texture-synthesis` CLI on the same machine.
 
 For each exemplar: `texsyn analyze` once, then in alternating rounds the whole `texsyn synth`
-process from the image and from the analysis file (wall clock), and one `texture-synthesis`
-run (its defaults). Quality comes from `texsyn eval` on both outputs (the largest verbatim copy
+process from the image and from the analysis file (wall clock), and `--ts-runs` (default 1)
+`texture-synthesis` runs (its defaults; its outputs vary from run to run). Quality comes from `texsyn eval` on both outputs (the largest verbatim copy
 from texsyn's coordinate map, written in a separate, untimed run). Prints a Markdown table and
 the medians of the ratios, the figures issue 2 judges.
 
