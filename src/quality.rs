@@ -5,6 +5,8 @@
 //!   exemplar window; 0 when every output window occurs in the exemplar). Fast and
 //!   approximate (an upper bound of [`texture_energy_exact`]); [`multiscale_energy`]
 //!   repeats it at half and quarter resolution.
+//!   [`coarse_energy_any_phase`] repeats it without depending on where the
+//!   downsampling grid falls (the exemplar downsampled at every grid offset).
 //! * [`histogram_distance`]: per-channel earth mover's distance between the value
 //!   histograms.
 //! * [`verbatim_stats`]: how much of a synthesized coordinate map is verbatim copy.
