@@ -522,13 +522,17 @@ fn prepare<'a>(
 ///
 /// Errors: an image that is empty, inconsistent or smaller than the window.
 pub fn texture_energy(exemplar: &FloatImage, output: &FloatImage, radius: u32) -> Result<f64> {
-    let map = texture_energy_map(exemplar, output, radius)?;
-    // Summed per band of rows, then over bands, in a fixed order (deterministic).
+    Ok(mean_energy(&texture_energy_map(exemplar, output, radius)?))
+}
+
+/// An [`EnergyMap`]'s mean per value: summed per band of rows, then over bands, in a
+/// fixed order (deterministic).
+fn mean_energy(map: &EnergyMap) -> f64 {
     let sums = map
         .values
         .chunks(BAND_ROWS * map.width as usize)
         .map(|band| band.iter().map(|&v| v as f64).sum::<f64>());
-    Ok(sums.sum::<f64>() / (map.values.len() as f64 * map.dim as f64))
+    sums.sum::<f64>() / (map.values.len() as f64 * map.dim as f64)
 }
 
 /// Per-window figures of [`texture_energy`]: the squared distance of every output
@@ -725,36 +729,39 @@ pub fn texture_energy_any(
     output: &FloatImage,
     radius: u32,
 ) -> Result<f64> {
+    Ok(energy_union(exemplars, output, radius)?.0)
+}
+
+/// [`texture_energy_any`], and the energy against the first image alone when its map
+/// could be computed (`NaN` otherwise): one search per image.
+fn energy_union(exemplars: &[FloatImage], output: &FloatImage, radius: u32) -> Result<(f64, f64)> {
     let mut best: Option<EnergyMap> = None;
+    let mut first = f64::NAN;
     let mut first_err = None;
-    for ex in exemplars {
+    for (i, ex) in exemplars.iter().enumerate() {
         match texture_energy_map(ex, output, radius) {
-            Ok(map) => match &mut best {
-                None => best = Some(map),
-                Some(b) => {
-                    for (v, n) in b.values.iter_mut().zip(map.values) {
-                        *v = v.min(n);
+            Ok(map) => {
+                if i == 0 {
+                    first = mean_energy(&map);
+                }
+                match &mut best {
+                    None => best = Some(map),
+                    Some(b) => {
+                        for (v, n) in b.values.iter_mut().zip(map.values) {
+                            *v = v.min(n);
+                        }
                     }
                 }
-            },
+            }
             Err(e) => {
                 first_err.get_or_insert(e);
             }
         }
     }
-    let map = match best {
-        Some(m) => m,
-        None => {
-            return Err(
-                first_err.unwrap_or_else(|| invalid("texture_energy_any: no exemplar image"))
-            )
-        }
-    };
-    let sums = map
-        .values
-        .chunks(BAND_ROWS * map.width as usize)
-        .map(|band| band.iter().map(|&v| v as f64).sum::<f64>());
-    Ok(sums.sum::<f64>() / (map.values.len() as f64 * map.dim as f64))
+    match best {
+        Some(m) => Ok((mean_energy(&m), first)),
+        None => Err(first_err.unwrap_or_else(|| invalid("texture_energy_any: no exemplar image"))),
+    }
 }
 
 /// [`multiscale_energy`]'s half and quarter figures without its dependence on where the
@@ -769,10 +776,22 @@ pub fn coarse_energy_any_phase(
     output: &FloatImage,
     radius: u32,
 ) -> Result<[f64; 2]> {
+    Ok(coarse_energies(exemplar, output, radius)?.1)
+}
+
+/// Half and quarter resolution energies both ways: `(grid, any_phase)`, the grid ones
+/// being [`multiscale_energy`]'s (the offset at the origin, searched once for both).
+fn coarse_energies(
+    exemplar: &FloatImage,
+    output: &FloatImage,
+    radius: u32,
+) -> Result<([f64; 2], [f64; 2])> {
     exemplar.validate()?;
     output.validate()?;
     let o2 = output.downsample2();
     let o4 = o2.downsample2();
+    // The exemplar cropped by every offset under `f`, then downsampled `f` times; the
+    // offset (0, 0) first (the uncropped exemplar, as `multiscale_energy` downsamples it).
     let shifted = |f: u32| -> Result<Vec<FloatImage>> {
         let mut v = Vec::new();
         for dy in 0..f {
@@ -791,9 +810,10 @@ pub fn coarse_energy_any_phase(
         }
         Ok(v)
     };
-    let half = texture_energy_any(&shifted(2)?, &o2, radius).unwrap_or(f64::NAN);
-    let quarter = texture_energy_any(&shifted(4)?, &o4, radius).unwrap_or(f64::NAN);
-    Ok([half, quarter])
+    let nan = (f64::NAN, f64::NAN);
+    let (half_any, half) = energy_union(&shifted(2)?, &o2, radius).unwrap_or(nan);
+    let (quarter_any, quarter) = energy_union(&shifted(4)?, &o4, radius).unwrap_or(nan);
+    Ok(([half, quarter], [half_any, quarter_any]))
 }
 
 /// Orthonormal basis (`p` rows of `dim()` values, `p = min(dims, dim())`) of the
@@ -1531,9 +1551,10 @@ pub fn evaluate(
     radius: u32,
     coords: Option<CoordMap<'_>>,
 ) -> Result<QualityReport> {
-    let energy = multiscale_energy(exemplar, output, radius)?;
-    let [half, quarter] = coarse_energy_any_phase(exemplar, output, radius)?;
-    let energy_any_phase = [energy[0], half, quarter];
+    let full = texture_energy(exemplar, output, radius)?;
+    let (grid, any) = coarse_energies(exemplar, output, radius)?;
+    let energy = [full, grid[0], grid[1]];
+    let energy_any_phase = [full, any[0], any[1]];
     let histogram = histogram_distance(exemplar, output)?;
     let histogram_mean = histogram.iter().sum::<f64>() / histogram.len().max(1) as f64;
     let (verbatim, repetition) = match coords {

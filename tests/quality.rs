@@ -506,6 +506,14 @@ fn report_and_json() {
     assert_eq!(v.largest_region_pixels, 256);
     assert_eq!(v.regions, 16);
     assert!(r.energy[0] > 0.0 && r.energy[0] < 0.05);
+    // The report's grid figures are multiscale_energy's, its any-phase ones
+    // coarse_energy_any_phase's (evaluate shares their offset-(0, 0) searches).
+    assert_eq!(
+        r.energy,
+        multiscale_energy(&ex, &out, DEFAULT_RADIUS).unwrap()
+    );
+    let any = coarse_energy_any_phase(&ex, &out, DEFAULT_RADIUS).unwrap();
+    assert_eq!(r.energy_any_phase, [r.energy[0], any[0], any[1]]);
     assert_eq!(r.histogram.len(), 3);
     assert!((r.histogram_mean - r.histogram.iter().sum::<f64>() / 3.0).abs() < 1e-15);
     let json = r.to_json();
