@@ -3,9 +3,10 @@
 
 For each exemplar: `texsyn analyze` once, then in alternating rounds the whole `texsyn synth`
 process from the image and from the analysis file (wall clock), and `--ts-runs` (default 1)
-`texture-synthesis` runs (its defaults; its outputs vary from run to run). Quality comes from `texsyn eval` on both outputs (the largest verbatim copy
-from texsyn's coordinate map, written in a separate, untimed run). Prints a Markdown table and
-the medians of the ratios, the figures issue 2 judges.
+`texture-synthesis` runs (its defaults; its outputs vary from run to run). Quality comes from
+`texsyn eval` on both outputs (the largest verbatim copy from texsyn's coordinate map, written
+in a separate, untimed run). Prints a Markdown table and the medians of the ratios, the
+figures issue 2 judges, with the coarse energies both on the grid and any-phase.
 
     cargo build --release
     cargo install --locked texture-synthesis-cli --version 0.8.3 --root /tmp/tscli
