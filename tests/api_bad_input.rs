@@ -231,3 +231,22 @@ fn figure_helpers_answer_nan_for_inconsistent_input() {
     assert_eq!(warped_difference(&a, &a, &[], 0), 0.0);
     let _ = Mesh::uv_sphere(1.0, u32::MAX, 3); // clamped, not an overflow
 }
+
+/// An exemplar whose analysis cannot fit in the memory available is refused up front,
+/// naming both amounts and what to do; one that fits, or an unknown amount, passes.
+#[test]
+fn an_analysis_larger_than_memory_is_refused_before_any_work() {
+    use texsyn::analysis::{analysis_memory_estimate, check_analysis_memory};
+    let need = analysis_memory_estimate(16000, 16000);
+    // 15 levels with level 0, 64 bytes each per pixel.
+    assert_eq!(need, 16000 * 16000 * 15 * 64);
+    let e = check_analysis_memory(16000, 16000, Some(24 << 30)).unwrap_err();
+    let msg = e.to_string();
+    assert!(msg.contains("16000x16000"), "{msg}");
+    assert!(msg.contains("GiB are available"), "{msg}");
+    assert!(msg.contains("--magnify"), "{msg}");
+    check_analysis_memory(512, 512, Some(24 << 30)).unwrap();
+    check_analysis_memory(16000, 16000, None).unwrap();
+    // The 128 px exemplars need about 10 MiB.
+    assert!(analysis_memory_estimate(128, 128) < 16 << 20);
+}

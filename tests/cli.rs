@@ -1357,3 +1357,23 @@ fn audit_findings_fail_cleanly() {
     };
     assert_eq!(warped("all")[1..], warped("from1")[..]);
 }
+
+/// A reader that goes away (`texsyn ... 2>&1 | head -1`) loses the messages, not the
+/// work: before, the next progress line panicked ("failed printing to stderr", exit 101).
+#[test]
+fn a_closed_stderr_does_not_stop_the_run() {
+    use std::process::Stdio;
+    let dir = TempDir::new("closed-stderr");
+    // The pipe's read end is closed before the child writes anything.
+    let (reader, writer) = std::io::pipe().unwrap();
+    drop(reader);
+    let status = Command::new(BIN)
+        .args(["analyze", GRAVEL, "-o", "a.tsa"])
+        .current_dir(&dir.0)
+        .stdout(Stdio::null())
+        .stderr(writer)
+        .status()
+        .unwrap();
+    assert_eq!(status.code(), Some(0));
+    assert!(dir.path("a.tsa").is_file());
+}

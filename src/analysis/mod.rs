@@ -372,6 +372,40 @@ pub fn level_count(width: u32, height: u32) -> u32 {
     32 - (m - 1).leading_zeros()
 }
 
+/// Peak host memory of [`analyze`], bytes: about 64 bytes per pixel and level (the
+/// float and quantized tables, the Gaussian stack, the similarity-search features).
+/// Measured (maximum resident set of `texsyn analyze`): 1024x1024 grey 559 MB and RGB
+/// 664 MB, 12 levels with level 0, i.e. 44-53 bytes per pixel and level.
+pub fn analysis_memory_estimate(width: u32, height: u32) -> u64 {
+    width as u64 * height as u64 * (level_count(width, height) as u64 + 1) * 64
+}
+
+/// Host memory the system reports as available (Linux `MemAvailable`), if it can tell.
+fn available_memory() -> Option<u64> {
+    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = info.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib.saturating_mul(1024))
+}
+
+/// An exemplar whose analysis would not fit in `available` bytes of memory is refused
+/// before any work, with what to do, instead of ending in an allocation abort or the
+/// out-of-memory killer minutes later. `None` (unknown): no check.
+pub fn check_analysis_memory(width: u32, height: u32, available: Option<u64>) -> Result<()> {
+    let need = analysis_memory_estimate(width, height);
+    match available {
+        Some(have) if need > have => Err(Error::InvalidParameter(format!(
+            "exemplar {width}x{height} is too large to analyse on this machine: the analysis \
+             needs about {:.1} GiB of memory and {:.1} GiB are available; downsample it, or \
+             keep its detail with `texsyn synth --magnify F` (analysis on a 1/F copy, colours \
+             from the full image)",
+            need as f64 / (1u64 << 30) as f64,
+            have as f64 / (1u64 << 30) as f64
+        ))),
+        _ => Ok(()),
+    }
+}
+
 /// Validity margin of level `l` for non-tileable exemplars: `h_l` (half the radius of
 /// the 5x5 neighbourhood, whose outer taps read clamped border pixels), capped at a
 /// quarter of the smaller side so a valid region exists. Measured against the full
@@ -631,6 +665,7 @@ pub fn analyze(
             opts.exclusion_radius, ex.width, ex.height
         )));
     }
+    check_analysis_memory(ex.width, ex.height, available_memory())?;
     feature::check_weight(opts.feature_weight)?;
     feature::check_clamp(opts.feature_clamp)?;
     if let Some(mask) = &opts.feature_mask {

@@ -196,7 +196,7 @@ pub fn main() -> i32 {
         Ok(()) => 0,
         Err(e) => {
             ui.end_progress();
-            eprintln!("error: {e}");
+            stderr_line(format_args!("error: {e}"));
             1
         }
     }
@@ -205,6 +205,12 @@ pub fn main() -> i32 {
 // ---------------------------------------------------------------------------------------
 // Output to the user
 // ---------------------------------------------------------------------------------------
+
+/// One line on stderr. Unlike `eprintln!`, a closed or broken stderr (`texsyn ... 2>&1 |
+/// head -1`) does not panic: messages are lost, the work and its exit code are not.
+pub fn stderr_line(args: std::fmt::Arguments) {
+    let _ = writeln!(std::io::stderr().lock(), "{args}");
+}
 
 /// Where messages go: progress and summaries to stderr (unless quiet), results to stdout.
 pub struct Ui {
@@ -228,7 +234,7 @@ impl Ui {
     pub fn info(&self, line: impl AsRef<str>) {
         if !self.quiet {
             self.end_progress();
-            eprintln!("{}", line.as_ref());
+            stderr_line(format_args!("{}", line.as_ref()));
         }
     }
 
@@ -239,18 +245,18 @@ impl Ui {
         }
         if self.tty {
             // Clear to the end of the line: the new text may be shorter.
-            eprint!("\r{}\x1b[K", line.as_ref());
-            let _ = std::io::stderr().flush();
+            let mut err = std::io::stderr().lock();
+            let _ = write!(err, "\r{}\x1b[K", line.as_ref()).and_then(|_| err.flush());
             self.open_line.set(true);
         } else {
-            eprintln!("{}", line.as_ref());
+            stderr_line(format_args!("{}", line.as_ref()));
         }
     }
 
     /// Ends an open `\r` progress line.
     pub fn end_progress(&self) {
         if self.open_line.replace(false) {
-            eprintln!();
+            stderr_line(format_args!(""));
         }
     }
 

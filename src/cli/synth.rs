@@ -635,10 +635,10 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
         synthesizer.set_progress(Some(Box::new(move |done, total| {
             if last.is_none_or(|t| t.elapsed().as_secs_f32() >= 1.0) {
                 last = Some(Instant::now());
-                eprintln!(
+                super::stderr_line(format_args!(
                     "synthesizing {width}x{height}: level {done}/{total} done ({})",
                     fmt_duration(start.elapsed())
-                );
+                ));
             }
         })));
     }
