@@ -1377,3 +1377,42 @@ fn a_closed_stderr_does_not_stop_the_run() {
     assert_eq!(status.code(), Some(0));
     assert!(dir.path("a.tsa").is_file());
 }
+
+/// Outputs their format cannot hold, or an animation larger than the memory free, are
+/// refused before the work: a GIF over 65535 pixels a side failed only after the whole
+/// synthesis, an animation of too many frames with an allocation failure late in the run.
+#[test]
+fn outputs_their_format_or_memory_cannot_hold_are_refused_early() {
+    let dir = TempDir::new("format-limits");
+    fails(
+        &dir,
+        &["synth", GRAVEL, "-o", "wide.gif", "--size", "70000x16"],
+        1,
+        "GIF images are at most 65535 pixels a side",
+    );
+    fails(
+        &dir,
+        &[
+            "synth",
+            GRAVEL,
+            "-o",
+            "a.webp",
+            "--size",
+            "8200x8",
+            "--magnify",
+            "2",
+        ],
+        1,
+        "WebP images are at most 16384 pixels a side and the output is 16400x16",
+    );
+    // 100001 frames of 1024x1024 RGBA: about 390 GiB kept for the encoder.
+    fails(
+        &dir,
+        &[
+            "advect", GRAVEL, "--flow", "vortex", "--frames", "100000", "--size", "1024", "-o",
+            "anim.png",
+        ],
+        1,
+        "is kept in memory until it is encoded",
+    );
+}

@@ -381,7 +381,7 @@ pub fn analysis_memory_estimate(width: u32, height: u32) -> u64 {
 }
 
 /// Host memory the system reports as available (Linux `MemAvailable`), if it can tell.
-fn available_memory() -> Option<u64> {
+pub fn available_memory() -> Option<u64> {
     let info = std::fs::read_to_string("/proc/meminfo").ok()?;
     let line = info.lines().find(|l| l.starts_with("MemAvailable:"))?;
     let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;

@@ -426,6 +426,8 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
         args.energy_every
     };
     let mut figures = texsyn::quality::TemporalFigures::new(&exemplar_image, every);
+    // Frames an animation keeps until it is encoded: 0, every, 2 every, ... <= frames.
+    let kept_frames = args.frames as u64 / args.every as u64 + 1;
     let mut costs = Vec::new();
     let mut passes = Vec::new();
     // Frames written to the output (every --every-th), and their size (renders with
@@ -481,7 +483,12 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
                     image.as_raw(),
                 )?;
             }
-            Sink::Gif(_, list) | Sink::Apng(_, list) => list.push(image),
+            Sink::Gif(path, list) | Sink::Apng(path, list) => {
+                if list.is_empty() {
+                    check_animation_fits(path, image.width(), image.height(), kept_frames)?;
+                }
+                list.push(image)
+            }
         }
         Ok(())
     };
@@ -606,6 +613,35 @@ fn write_apng(path: &Path, frames: &[image::RgbaImage]) -> CliResult<()> {
         }
         writer.finish().map_err(err)
     })?;
+    Ok(())
+}
+
+/// An animation is kept in memory until it is encoded: refuse one that cannot be (GIF
+/// sides over 65535 pixels) or that would not fit in the memory available, at its first
+/// frame rather than with an allocation failure hundreds of frames later.
+fn check_animation_fits(path: &Path, width: u32, height: u32, frames: u64) -> CliResult<()> {
+    let gif = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("gif"));
+    if gif && width.max(height) > 65535 {
+        return Err(fail(format!(
+            "-o {}: GIF frames are at most 65535 pixels a side and these are {width}x{height}; \
+             write an animated PNG (.png) or a folder of frames",
+            path.display()
+        )));
+    }
+    let need = frames * width as u64 * height as u64 * 4;
+    // Half of what is available: the encoder needs room of its own.
+    let have = texsyn::analysis::available_memory().map(|m| m / 2);
+    if have.is_some_and(|have| need > have) {
+        return Err(fail(format!(
+            "-o {}: an animation of {frames} frames of {width}x{height} is kept in memory until \
+             it is encoded, about {:.1} GiB, more than this machine has free; write a folder of \
+             frames (-o DIR), keep fewer (--every K), or make them smaller",
+            path.display(),
+            need as f64 / (1u64 << 30) as f64
+        )));
+    }
     Ok(())
 }
 

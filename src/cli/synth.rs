@@ -445,6 +445,11 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
             .map_err(|e| fail(format!("--also: cannot read {}: {e}", a.input.display())))?;
     }
     let [width, height] = args.size;
+    // The image outputs (magnified with --magnify) must fit their formats.
+    let f = args.magnify.unwrap_or(1) as u64;
+    for out in std::iter::once(&args.output).chain(args.also.iter().map(|a| &a.output)) {
+        check_save_size(out, width as u64 * f, height as u64 * f)?;
+    }
     // What the output file holds (larger than the synthesis with --magnify).
     let mut out_size = (width, height);
     // The device is created on a thread of its own while the input is read: loading the
@@ -943,9 +948,47 @@ pub fn check_save_extension(path: &Path) -> CliResult<()> {
     }
 }
 
+/// The largest side each output format's encoder writes (the `image` crate and its
+/// WebP encoder refuse larger ones, which would surface only after the synthesis).
+fn format_max_side(path: &Path) -> Option<(&'static str, u32)> {
+    use image::ImageFormat as F;
+    match F::from_extension(path.extension()?)? {
+        F::Jpeg => Some(("JPEG", 65535)),
+        F::Gif => Some(("GIF", 65535)),
+        F::Tga => Some(("TGA", 65535)),
+        F::WebP => Some(("WebP", 16384)),
+        _ => None,
+    }
+}
+
+/// An output of `width` x `height` must fit its format: checked before any work.
+pub fn check_save_size(path: &Path, width: u64, height: u64) -> CliResult<()> {
+    match format_max_side(path) {
+        Some((name, max)) if width > max as u64 || height > max as u64 => Err(fail(format!(
+            "cannot write {}: {name} images are at most {max} pixels a side and the output is \
+             {width}x{height}; use .png, .tif or .exr",
+            path.display()
+        ))),
+        _ => Ok(()),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn output_formats_refuse_sizes_they_cannot_encode() {
+        check_save_size(Path::new("a.png"), 70000, 16).unwrap();
+        check_save_size(Path::new("a.gif"), 65535, 16).unwrap();
+        let e = check_save_size(Path::new("a.gif"), 70000, 16).unwrap_err();
+        assert!(
+            e.to_string().contains("GIF images are at most 65535"),
+            "{e}"
+        );
+        check_save_size(Path::new("a.webp"), 16, 16385).unwrap_err();
+        check_save_size(Path::new("a.JPG"), 65536, 1).unwrap_err();
+    }
 
     #[test]
     fn also_names_with_equals_signs() {
