@@ -284,11 +284,15 @@ impl Flow {
 /// which tends to `omega` at the centre (computed there from its series, so that small
 /// `r2` loses no precision); 0 for a core radius that is not positive.
 pub(crate) fn lamb_oseen_rate(omega: f32, rc: f32, r2: f32) -> f32 {
-    // A core of 0 (refused by `validate`) gives a still field, not NaN at the centre.
-    let x = if rc > 0.0 {
-        r2 / (rc * rc)
-    } else {
+    // A core of 0 (refused by `validate`), or one so small that its square underflows,
+    // gives a field still everywhere but at the centre, not NaN there (0 / 0).
+    let rr = rc * rc;
+    let x = if rr > 0.0 {
+        r2 / rr
+    } else if r2 > 0.0 {
         f32::INFINITY
+    } else {
+        0.0
     };
     if x < 1e-4 {
         omega * (1.0 - 0.5 * x)
@@ -364,5 +368,23 @@ impl std::str::FromStr for Flow {
             "image" => return Err("image: give the velocity image's file (image:FILE)".into()),
             _ => return Err(format!("'{s}': unknown flow (see --help)\n{FLOW_HELP}")),
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A core radius whose square underflows (`vortex:0.5,0.5,0.01,1e-30`) used to give
+    /// NaN at the centre (0 / 0), refused only when the first frame was uploaded.
+    #[test]
+    fn a_vanishing_core_gives_finite_velocities() {
+        assert_eq!(lamb_oseen_rate(0.01, 1e-30, 0.0), 0.01);
+        assert_eq!(lamb_oseen_rate(0.01, 1e-30, 1.0), 0.0);
+        assert_eq!(lamb_oseen_rate(0.01, 0.0, 0.0), 0.01);
+        let flow: Flow = "vortex:0.5,0.5,0.01,1e-30".parse().unwrap();
+        flow.validate().unwrap();
+        let v = flow.sample(255, 255, 0.0).unwrap();
+        assert!(v.iter().flatten().all(|x| x.is_finite()));
     }
 }

@@ -603,13 +603,20 @@ fn decode_any(path: &Path) -> Result<Decoded> {
         });
     }
     let is_exr = reader.format() == Some(ImageFormat::OpenExr);
-    let e = match reader.decode() {
-        Ok(img) => return Ok(Decoded::Image(img)),
-        Err(e) => e,
-    };
     let bad = |reason: String| Error::BadImage {
         path: path.to_path_buf(),
         reason,
+    };
+    // Decoders read untrusted bytes: a panic in one is a bad file, not a crash.
+    let e = match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| reader.decode())) {
+        Ok(Ok(img)) => return Ok(Decoded::Image(img)),
+        Ok(Err(e)) => e,
+        Err(_) => {
+            return Err(bad(format!(
+                "the {} decoder failed on this file (corrupt data)",
+                if is_exr { "OpenEXR" } else { "image" }
+            )))
+        }
     };
     let mut reason = match &e {
         image::ImageError::IoError(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => {
@@ -685,6 +692,64 @@ pub fn write_atomic(
     path: &Path,
     write: impl FnOnce(&mut BufWriter<File>) -> Result<()>,
 ) -> Result<()> {
+    stage_file(path, write)?.commit()
+}
+
+/// A file written in full to its temporary name and fsynced, not yet renamed over its
+/// target ([`stage_file`]); dropped without [`StagedFile::commit`], the temporary file is
+/// removed and the target never touched.
+pub struct StagedFile {
+    /// `None`: the target was a stream (a device, a pipe), already written.
+    temp: Option<TempGuard>,
+    path: PathBuf,
+    dir: PathBuf,
+}
+
+impl StagedFile {
+    /// Renames the temporary file over the target (and fsyncs the directory, best
+    /// effort).
+    pub fn commit(mut self) -> Result<()> {
+        let Some(guard) = self.temp.as_mut() else {
+            return Ok(());
+        };
+        fs::rename(&guard.path, &self.path).map_err(|e| Error::Write {
+            path: self.path.clone(),
+            reason: format!("cannot rename the temporary file: {e}"),
+        })?;
+        guard.armed = false;
+        // Make the rename durable; not all platforms / file systems allow this.
+        if let Ok(d) = File::open(&self.dir) {
+            let _ = d.sync_all();
+        }
+        Ok(())
+    }
+}
+
+/// Writes several files all or nothing: every one is first written to its temporary
+/// name and fsynced, and only when all of them succeeded are they renamed over their
+/// targets. A failure before that (disk full, a read-only directory) leaves every
+/// target as it was, including those that existed before. Only a rename failing part
+/// way (rare: the temporary files lie in the targets' own directories) can leave some
+/// targets replaced and others not.
+pub fn write_files_atomic(files: &[(&Path, &[u8])]) -> Result<()> {
+    let mut staged = Vec::with_capacity(files.len());
+    for &(path, bytes) in files {
+        staged.push(stage_file(path, |w| {
+            w.write_all(bytes).map_err(|e| Error::Write {
+                path: path.to_path_buf(),
+                reason: e.to_string(),
+            })
+        })?);
+    }
+    staged.into_iter().try_for_each(StagedFile::commit)
+}
+
+/// The first half of [`write_atomic`]: `write` fills the temporary file, which is
+/// flushed and fsynced; [`StagedFile::commit`] renames it over `path`.
+pub fn stage_file(
+    path: &Path,
+    write: impl FnOnce(&mut BufWriter<File>) -> Result<()>,
+) -> Result<StagedFile> {
     let werr = |reason: String| Error::Write {
         path: path.to_path_buf(),
         reason,
@@ -711,7 +776,11 @@ pub fn write_atomic(
                 other => werr(other.to_string()),
             })?;
             w.into_inner().map_err(|e| werr(e.error().to_string()))?;
-            return Ok(());
+            return Ok(StagedFile {
+                temp: None,
+                path: path.to_path_buf(),
+                dir: PathBuf::new(),
+            });
         }
     }
     let dir = match path.parent() {
@@ -749,7 +818,7 @@ pub fn write_atomic(
                 dir.display()
             ))
         })?;
-    let mut guard = TempGuard {
+    let guard = TempGuard {
         path: tmp_path,
         armed: true,
     };
@@ -763,16 +832,11 @@ pub fn write_atomic(
     file.sync_all()
         .map_err(|e| werr(format!("fsync failed: {e}")))?;
     drop(file);
-
-    fs::rename(&guard.path, path)
-        .map_err(|e| werr(format!("cannot rename the temporary file: {e}")))?;
-    guard.armed = false;
-
-    // Make the rename durable; not all platforms / file systems allow this.
-    if let Ok(d) = File::open(&dir) {
-        let _ = d.sync_all();
-    }
-    Ok(())
+    Ok(StagedFile {
+        temp: Some(guard),
+        path: path.to_path_buf(),
+        dir,
+    })
 }
 
 /// `path` with its symlinks followed (a dangling link names the file to create).
@@ -951,6 +1015,24 @@ pub fn save_image_atomic(
     channels: u32,
     rgba8: &[u8],
 ) -> Result<()> {
+    let bytes = encode_image(path, width, height, channels, rgba8)?;
+    write_atomic(path, |w| {
+        w.write_all(&bytes).map_err(|e| Error::Write {
+            path: path.to_path_buf(),
+            reason: e.to_string(),
+        })
+    })
+}
+
+/// The file [`save_image_atomic`] writes, encoded in memory (to write several outputs
+/// all or nothing with [`write_files_atomic`]).
+pub fn encode_image(
+    path: &Path,
+    width: u32,
+    height: u32,
+    channels: u32,
+    rgba8: &[u8],
+) -> Result<Vec<u8>> {
     let format = save_format(path)?;
     check_buffer(width, height, 4, rgba8.len(), "the RGBA8 buffer")?;
     let img = match channels {
@@ -988,19 +1070,13 @@ pub fn save_image_atomic(
         Some("ppm") if channels != 3 => DynamicImage::ImageRgb8(img.to_rgb8()),
         _ => img,
     };
-    let bytes = match ext.as_deref() {
+    match ext.as_deref() {
         // The PNM encoder writes PAM (P7) unless told a subtype; P5/P6 are what .pnm,
         // .pgm and .ppm readers expect (alpha is dropped, as for JPEG).
         Some("pnm" | "pgm" | "ppm") => encode_pnm(&img),
         _ => encode_with_fallback(&img, format),
     }
-    .map_err(|e| encode_err(path, e))?;
-    write_atomic(path, |w| {
-        w.write_all(&bytes).map_err(|e| Error::Write {
-            path: path.to_path_buf(),
-            reason: e.to_string(),
-        })
-    })
+    .map_err(|e| encode_err(path, e))
 }
 
 // ---------------------------------------------------------------------------------------
@@ -1028,6 +1104,22 @@ pub fn save_coords_exr_f32_atomic(
     height: u32,
     coords: &[[f32; 2]],
 ) -> Result<()> {
+    let bytes = encode_coords_exr_f32(path, width, height, coords)?;
+    write_atomic(path, |w| {
+        w.write_all(&bytes).map_err(|e| Error::Write {
+            path: path.to_path_buf(),
+            reason: e.to_string(),
+        })
+    })
+}
+
+/// The file [`save_coords_exr_f32_atomic`] writes, encoded in memory.
+pub fn encode_coords_exr_f32(
+    path: &Path,
+    width: u32,
+    height: u32,
+    coords: &[[f32; 2]],
+) -> Result<Vec<u8>> {
     check_buffer(width, height, 1, coords.len(), "the coordinate map")?;
     let data: Vec<f32> = coords.iter().flat_map(|c| [c[0], c[1], 0.0]).collect();
     let img = image::Rgb32FImage::from_raw(width, height, data).unwrap();
@@ -1035,13 +1127,7 @@ pub fn save_coords_exr_f32_atomic(
     DynamicImage::ImageRgb32F(img)
         .write_to(&mut buf, ImageFormat::OpenExr)
         .map_err(|e| encode_err(path, e))?;
-    let bytes = buf.into_inner();
-    write_atomic(path, |w| {
-        w.write_all(&bytes).map_err(|e| Error::Write {
-            path: path.to_path_buf(),
-            reason: e.to_string(),
-        })
-    })
+    Ok(buf.into_inner())
 }
 
 /// Reads a coordinate map as floats (exemplar pixels, not rounded): `(width, height,

@@ -871,3 +871,24 @@ fn atomic_write_follows_symlinks_keeps_devices_and_clears_stale_temporaries() {
         assert!(live.exists());
     }
 }
+
+/// Several outputs are written all or nothing: when one cannot be written, the others
+/// (which existed before) keep their old content and no temporary file is left.
+#[test]
+fn several_files_are_written_all_or_nothing() {
+    use texsyn::image_io::write_files_atomic;
+    let dir = TempDir::new("all-or-nothing");
+    let a = dir.join("a.bin");
+    std::fs::write(&a, b"old").unwrap();
+    let missing = dir.join("no-such-dir").join("b.bin");
+    let e = write_files_atomic(&[(&a, b"new"), (&missing, b"b")]).unwrap_err();
+    assert!(matches!(e, Error::Write { .. }), "{e}");
+    assert_eq!(std::fs::read(&a).unwrap(), b"old");
+    assert_eq!(dir.names(), vec!["a.bin".to_string()]);
+
+    let b = dir.join("b.bin");
+    write_files_atomic(&[(&a, b"new"), (&b, b"b")]).unwrap();
+    assert_eq!(std::fs::read(&a).unwrap(), b"new");
+    assert_eq!(std::fs::read(&b).unwrap(), b"b");
+    assert_eq!(dir.names(), vec!["a.bin".to_string(), "b.bin".to_string()]);
+}

@@ -442,7 +442,12 @@ pub fn check_exemplar_size(width: u32, height: u32) -> Result<()> {
     Ok(())
 }
 
-/// A thread count where 0 means all cores.
+/// Most worker threads the analysis starts, whatever it is asked for: the work is split
+/// into at most 64 chunks (`par_ranges`), so more threads only idle, and a huge count
+/// would fail to spawn (or overflow the kd-tree's power-of-two split).
+pub const MAX_THREADS: usize = 256;
+
+/// A thread count where 0 means all cores, at most [`MAX_THREADS`].
 pub(crate) fn resolve_threads(threads: usize) -> usize {
     if threads == 0 {
         std::thread::available_parallelism()
@@ -451,6 +456,7 @@ pub(crate) fn resolve_threads(threads: usize) -> usize {
     } else {
         threads
     }
+    .min(MAX_THREADS)
 }
 
 /// Runs `f` over `0..n` split into chunks on `threads` workers (0 = all cores) and

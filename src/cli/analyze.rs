@@ -43,8 +43,9 @@ pub struct AnalyzeArgs {
           allow_hyphen_values = true)]
     pub exclusion: u32,
 
-    /// Worker threads (0 = all cores)
-    #[arg(long, value_name = "N", default_value_t = 0)]
+    /// Worker threads (0 = all cores; at most 256)
+    #[arg(long, value_name = "N", default_value_t = 0,
+          value_parser = parse_threads)]
     pub threads: usize,
 }
 
@@ -159,4 +160,14 @@ pub fn print_levels(ui: &Ui, a: &Analysis) {
             ));
         }
     }
+}
+
+/// `--threads`: 0 (all cores) to [`texsyn::analysis::MAX_THREADS`].
+fn parse_threads(s: &str) -> Result<usize, String> {
+    let max = texsyn::analysis::MAX_THREADS;
+    s.trim()
+        .parse::<usize>()
+        .ok()
+        .filter(|&t| t <= max)
+        .ok_or_else(|| format!("{s:?}: give a thread count from 0 (all cores) to {max}"))
 }

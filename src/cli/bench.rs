@@ -42,8 +42,8 @@ pub struct BenchArgs {
     #[arg(long, value_name = "N", default_value_t = 7, value_parser = clap::value_parser!(u32).range(1..=10_000))]
     pub runs: u32,
 
-    /// Untimed warm-up runs per size
-    #[arg(long, value_name = "W", default_value_t = 2)]
+    /// Untimed warm-up runs per size (0..=10000)
+    #[arg(long, value_name = "W", default_value_t = 2, value_parser = clap::value_parser!(u32).range(0..=10_000))]
     pub warmup: u32,
 
     /// Random seed of the syntheses

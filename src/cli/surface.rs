@@ -495,38 +495,32 @@ pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
         render_image = Some((r, img));
     }
     let render_time = t.elapsed();
-    // All or nothing: a failed write removes what this run already wrote.
-    let mut written: Vec<&std::path::Path> = Vec::new();
-    let result = (|| -> CliResult<()> {
-        if let Some((r, img)) = &render_image {
-            texsyn::image_io::save_image_atomic(r, img.width(), img.height(), 4, img.as_raw())?;
-            written.push(r.as_path());
-        }
-        if let Some(a) = &args.atlas_out {
-            texsyn::image_io::save_image_atomic(
-                a,
-                base_color.width(),
-                base_color.height(),
-                4,
-                base_color.as_raw(),
-            )?;
-            written.push(a.as_path());
-        }
-        let material = MaterialImages {
-            base_color,
-            normal,
-            metallic_roughness,
-            occlusion,
-        };
-        gltf_io::write_glb(&args.output, &prepared.atlas.mesh, &material)?;
-        Ok(())
-    })();
-    if let Err(e) = result {
-        for p in &written {
-            let _ = std::fs::remove_file(p);
-        }
-        return Err(e);
+    // All or nothing: every output is encoded and written to its temporary file before
+    // any is renamed over its target (files that existed before stay as they were if
+    // any step fails).
+    use texsyn::image_io::{encode_image, write_files_atomic};
+    let mut files: Vec<(&std::path::Path, Vec<u8>)> = Vec::new();
+    if let Some((r, img)) = &render_image {
+        files.push((
+            r,
+            encode_image(r, img.width(), img.height(), 4, img.as_raw())?,
+        ));
     }
+    if let Some(a) = &args.atlas_out {
+        let (w, h) = base_color.dimensions();
+        files.push((a, encode_image(a, w, h, 4, base_color.as_raw())?));
+    }
+    let material = MaterialImages {
+        base_color,
+        normal,
+        metallic_roughness,
+        occlusion,
+    };
+    files.push((
+        &args.output,
+        gltf_io::encode_glb(&prepared.atlas.mesh, &material)?,
+    ));
+    write_files_atomic(&files.iter().map(|(p, b)| (*p, &b[..])).collect::<Vec<_>>())?;
     if let Some((r, _)) = &render_image {
         ui.info(format!("render: {}", r.display()));
     }

@@ -749,28 +749,28 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
         out_size = (out_w, out_h);
         let synth_readback = t.elapsed();
         let t = Instant::now();
-        // All or nothing: any failed write removes what this run already wrote.
-        let mut written: Vec<PathBuf> = Vec::new();
-        let result = (|| -> CliResult<()> {
-            if let Some(coords_path) = &args.coords_out {
-                texsyn::image_io::save_coords_exr_f32_atomic(coords_path, width, height, &coords)?;
-                written.push(coords_path.clone());
-            }
-            for (a, (pixels, (_, ch))) in args.also.iter().zip(map_pixels.iter().zip(&extra)) {
-                let bytes: Vec<u8> = pixels.iter().flatten().copied().collect();
-                texsyn::image_io::save_image_atomic(&a.output, out_w, out_h, *ch, &bytes)?;
-                written.push(a.output.clone());
-            }
-            let rgba8: Vec<u8> = colors.iter().flatten().copied().collect();
-            texsyn::image_io::save_image_atomic(&args.output, out_w, out_h, channels, &rgba8)?;
-            Ok(())
-        })();
-        if let Err(e) = result {
-            for p in &written {
-                let _ = std::fs::remove_file(p);
-            }
-            return Err(e);
+        // All or nothing: every output is encoded, then written to its temporary file,
+        // and only then are they all renamed (files that existed before stay as they
+        // were if any step fails).
+        use texsyn::image_io::{encode_coords_exr_f32, encode_image, write_files_atomic};
+        let mut files: Vec<(&Path, Vec<u8>)> = Vec::new();
+        if let Some(coords_path) = &args.coords_out {
+            let bytes = encode_coords_exr_f32(coords_path, width, height, &coords)?;
+            files.push((coords_path, bytes));
         }
+        for (a, (pixels, (_, ch))) in args.also.iter().zip(map_pixels.iter().zip(&extra)) {
+            let bytes: Vec<u8> = pixels.iter().flatten().copied().collect();
+            files.push((
+                &a.output,
+                encode_image(&a.output, out_w, out_h, *ch, &bytes)?,
+            ));
+        }
+        let rgba8: Vec<u8> = colors.iter().flatten().copied().collect();
+        files.push((
+            &args.output,
+            encode_image(&args.output, out_w, out_h, channels, &rgba8)?,
+        ));
+        write_files_atomic(&files.iter().map(|(p, b)| (*p, &b[..])).collect::<Vec<_>>())?;
         timings = Timings::Combined {
             synth_readback,
             write: t.elapsed(),

@@ -945,8 +945,8 @@ fn invalid(msg: String) -> Error {
     Error::InvalidParameter(format!("write_glb: {msg}"))
 }
 
-/// The binary glTF of `mesh` and `material`, in memory.
-fn encode_glb(mesh: &Mesh, material: &MaterialImages) -> Result<Vec<u8>> {
+/// The binary glTF of `mesh` and `material`, in memory (what [`write_glb`] writes).
+pub fn encode_glb(mesh: &Mesh, material: &MaterialImages) -> Result<Vec<u8>> {
     use json::validation::{Checked::Valid, USize64};
 
     let n = mesh.positions.len();
