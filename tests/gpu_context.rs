@@ -100,6 +100,7 @@ fn non_matching_adapter_is_a_helpful_no_adapter_error() {
     let result = GpuContext::with_options(GpuOptions {
         backend: None,
         adapter: Some("no-such-adapter-0xdeadbeef".to_string()),
+        ..Default::default()
     });
     match result {
         Err(Error::NoAdapter(message)) => {
@@ -120,6 +121,7 @@ fn non_matching_adapter_is_a_helpful_no_adapter_error() {
     let result = GpuContext::with_options(GpuOptions {
         backend: None,
         adapter: Some("999".to_string()),
+        ..Default::default()
     });
     assert!(matches!(result, Err(Error::NoAdapter(_))), "{result:?}");
 }
@@ -137,6 +139,7 @@ fn adapter_by_name_and_index() {
     let ctx = GpuContext::with_options(GpuOptions {
         backend: Some(format!("{:?}", expected.backend).to_lowercase()),
         adapter: Some(part),
+        ..Default::default()
     })
     .expect("adapter by name");
     assert_eq!(ctx.adapter_info.name, expected.name);
@@ -144,6 +147,7 @@ fn adapter_by_name_and_index() {
     let ctx = GpuContext::with_options(GpuOptions {
         backend: Some(format!("{:?}", expected.backend)),
         adapter: Some("0".to_string()),
+        ..Default::default()
     })
     .expect("adapter by index");
     println!("[0] {}", ctx.describe());
@@ -154,6 +158,7 @@ fn unknown_backend_is_an_invalid_parameter() {
     let result = GpuContext::with_options(GpuOptions {
         backend: Some("glide".to_string()),
         adapter: None,
+        ..Default::default()
     });
     match result {
         Err(Error::InvalidParameter(message)) => assert!(message.contains("glide"), "{message}"),

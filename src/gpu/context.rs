@@ -18,6 +18,9 @@ use crate::error::{Error, Result};
 pub const BACKEND_ENV: &str = "TEXSYN_BACKEND";
 /// Environment variable read by [`GpuContext::headless`] for [`GpuOptions::adapter`].
 pub const ADAPTER_ENV: &str = "TEXSYN_ADAPTER";
+/// Environment variable read by [`GpuContext::headless`] for
+/// [`GpuOptions::pin_cpu_threads`] (`0` or `1`).
+pub const PIN_CPU_THREADS_ENV: &str = "TEXSYN_PIN_CPU_THREADS";
 
 /// How [`GpuContext::with_options`] chooses its adapter.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
@@ -33,15 +36,22 @@ pub struct GpuOptions {
     /// integrated one, then a virtual one, then a CPU implementation such as lavapipe;
     /// adapters without compute shaders are skipped.
     pub adapter: Option<String>,
+    /// On a CPU adapter (lavapipe) on Linux, bind the driver's worker threads to
+    /// separate cores (see [`super::cpu_threads`]: without it the scheduler can run them
+    /// all on one core, nearly doubling the synthesis time on 2 cores). `None`: yes.
+    /// GPUs and other systems are never affected.
+    pub pin_cpu_threads: Option<bool>,
 }
 
 impl GpuOptions {
-    /// Options from `TEXSYN_BACKEND` and `TEXSYN_ADAPTER` (unset or empty: automatic).
+    /// Options from `TEXSYN_BACKEND`, `TEXSYN_ADAPTER` and `TEXSYN_PIN_CPU_THREADS` (unset
+    /// or empty: automatic; the last is `0` to leave the threads alone).
     pub fn from_env() -> Self {
         let var = |name| std::env::var(name).ok().filter(|v| !v.trim().is_empty());
         GpuOptions {
             backend: var(BACKEND_ENV),
             adapter: var(ADAPTER_ENV),
+            pin_cpu_threads: var(PIN_CPU_THREADS_ENV).map(|v| v.trim() != "0"),
         }
     }
 }
@@ -94,6 +104,25 @@ impl GpuContext {
     /// [`Error::NoAdapter`] when no adapter matches (the message lists those found), and
     /// [`Error::Gpu`] when the chosen adapter refuses to create a device.
     pub fn with_options(options: GpuOptions) -> Result<Self> {
+        use super::cpu_threads::{pin_threads_named, INIT_THREAD_NAME};
+        if options.pin_cpu_threads == Some(false) {
+            return Self::create(&options);
+        }
+        // On a thread of its own, so that the threads the driver starts meanwhile carry
+        // its name (see `cpu_threads`).
+        let ctx = std::thread::Builder::new()
+            .name(INIT_THREAD_NAME.into())
+            .spawn(move || Self::create(&options))
+            .map_err(|e| Error::Gpu(format!("cannot start a thread to create the device: {e}")))?
+            .join()
+            .map_err(|_| Error::Gpu("creating the device panicked".into()))??;
+        if ctx.adapter_info.device_type == wgpu::DeviceType::Cpu {
+            pin_threads_named(INIT_THREAD_NAME);
+        }
+        Ok(ctx)
+    }
+
+    fn create(options: &GpuOptions) -> Result<Self> {
         let backend = options
             .backend
             .as_deref()

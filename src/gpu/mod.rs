@@ -5,6 +5,7 @@
 pub mod advect;
 pub mod context;
 pub mod copy_guard;
+pub mod cpu_threads;
 pub mod shaders;
 pub mod synth;
 
