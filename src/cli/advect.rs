@@ -211,15 +211,21 @@ impl Staging {
     fn commit(mut self) -> CliResult<()> {
         let err = |e: std::io::Error| fail(format!("cannot write {}: {e}", self.target.display()));
         if self.target.is_dir() {
-            for entry in std::fs::read_dir(&self.target).map_err(err)? {
-                let entry = entry.map_err(err)?;
-                if is_frame_file(&entry.file_name().to_string_lossy()) {
-                    std::fs::remove_file(entry.path()).map_err(err)?;
-                }
-            }
+            // The new frames replace the old ones of the same names (each rename is
+            // atomic), then the old frames beyond them go: the folder never lacks a
+            // frame, and other files in it are kept.
+            let mut new = std::collections::HashSet::new();
             for entry in std::fs::read_dir(&self.dir).map_err(err)? {
                 let entry = entry.map_err(err)?;
                 std::fs::rename(entry.path(), self.target.join(entry.file_name())).map_err(err)?;
+                new.insert(entry.file_name());
+            }
+            for entry in std::fs::read_dir(&self.target).map_err(err)? {
+                let entry = entry.map_err(err)?;
+                let name = entry.file_name();
+                if is_frame_file(&name.to_string_lossy()) && !new.contains(&name) {
+                    std::fs::remove_file(entry.path()).map_err(err)?;
+                }
             }
             std::fs::remove_dir(&self.dir).map_err(err)?;
         } else {
