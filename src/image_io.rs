@@ -1016,12 +1016,7 @@ pub fn save_image_atomic(
     rgba8: &[u8],
 ) -> Result<()> {
     let bytes = encode_image(path, width, height, channels, rgba8)?;
-    write_atomic(path, |w| {
-        w.write_all(&bytes).map_err(|e| Error::Write {
-            path: path.to_path_buf(),
-            reason: e.to_string(),
-        })
-    })
+    write_files_atomic(&[(path, &bytes)])
 }
 
 /// The file [`save_image_atomic`] writes, encoded in memory (to write several outputs
@@ -1105,12 +1100,7 @@ pub fn save_coords_exr_f32_atomic(
     coords: &[[f32; 2]],
 ) -> Result<()> {
     let bytes = encode_coords_exr_f32(path, width, height, coords)?;
-    write_atomic(path, |w| {
-        w.write_all(&bytes).map_err(|e| Error::Write {
-            path: path.to_path_buf(),
-            reason: e.to_string(),
-        })
-    })
+    write_files_atomic(&[(path, &bytes)])
 }
 
 /// The file [`save_coords_exr_f32_atomic`] writes, encoded in memory.

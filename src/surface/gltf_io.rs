@@ -21,7 +21,6 @@
 
 use std::collections::BTreeMap;
 use std::fs;
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use glam::{Mat3, Mat4, Vec2, Vec3, Vec4};
@@ -933,12 +932,7 @@ fn merge(parts: Vec<Part>) -> std::result::Result<Mesh, String> {
 /// [`Error::Write`] when the file cannot be written.
 pub fn write_glb(path: &Path, mesh: &Mesh, material: &MaterialImages) -> Result<()> {
     let bytes = encode_glb(mesh, material)?;
-    crate::image_io::write_atomic(path, |w| {
-        w.write_all(&bytes).map_err(|e| Error::Write {
-            path: path.to_path_buf(),
-            reason: e.to_string(),
-        })
-    })
+    crate::image_io::write_files_atomic(&[(path, &bytes)])
 }
 
 fn invalid(msg: String) -> Error {
