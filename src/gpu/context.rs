@@ -109,13 +109,19 @@ impl GpuContext {
             return Self::create(&options);
         }
         // On a thread of its own, so that the threads the driver starts meanwhile carry
-        // its name (see `cpu_threads`).
-        let ctx = std::thread::Builder::new()
+        // its name (see `cpu_threads`). Where no thread can be started, here, unbound.
+        let spawned = std::thread::Builder::new()
             .name(INIT_THREAD_NAME.into())
-            .spawn(move || Self::create(&options))
-            .map_err(|e| Error::Gpu(format!("cannot start a thread to create the device: {e}")))?
-            .join()
-            .map_err(|_| Error::Gpu("creating the device panicked".into()))??;
+            .spawn({
+                let options = options.clone();
+                move || Self::create(&options)
+            });
+        let ctx = match spawned {
+            Ok(thread) => thread
+                .join()
+                .map_err(|_| Error::Gpu("creating the device panicked".into()))??,
+            Err(_) => return Self::create(&options),
+        };
         if ctx.adapter_info.device_type == wgpu::DeviceType::Cpu {
             pin_threads_named(INIT_THREAD_NAME);
         }
