@@ -317,3 +317,42 @@ fn pipelines_of_a_plan_prepared_before_the_upload() {
     assert!(ctx.prepare_synthesis(&analysis, &bad).is_err());
     ctx.take_uncaptured_errors().unwrap();
 }
+
+/// On a CPU adapter (lavapipe) with two or more cores, the driver's unnamed worker threads
+/// carry the name of the thread that created the device and are bound to separate cores
+/// (`texsyn::gpu::cpu_threads`). Other tests create devices at the same time, whose
+/// threads may not be bound yet: so this asks for two bound threads on two cores, not
+/// that every thread of the name is bound.
+#[cfg(target_os = "linux")]
+#[test]
+fn a_cpu_device_has_its_worker_threads_bound_to_separate_cores() {
+    use texsyn::gpu::cpu_threads::INIT_THREAD_NAME;
+    let ctx = context();
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    if ctx.adapter_info.device_type != wgpu::DeviceType::Cpu || cores < 2 {
+        println!("skipped: {} with {cores} cores", ctx.describe());
+        return;
+    }
+    let mut bound = std::collections::BTreeSet::new();
+    let mut named = 0;
+    for task in std::fs::read_dir("/proc/self/task").unwrap().flatten() {
+        let comm = std::fs::read_to_string(task.path().join("comm")).unwrap_or_default();
+        if comm.trim_end() != INIT_THREAD_NAME {
+            continue;
+        }
+        named += 1;
+        let status = std::fs::read_to_string(task.path().join("status")).unwrap_or_default();
+        let allowed = status
+            .lines()
+            .find_map(|l| l.strip_prefix("Cpus_allowed_list:"))
+            .map(|v| v.trim().to_string())
+            .unwrap_or_default();
+        // One core: a plain number, no range or list.
+        if let Ok(cpu) = allowed.parse::<u32>() {
+            bound.insert(cpu);
+        }
+    }
+    println!("{named} threads named {INIT_THREAD_NAME}, bound to cores {bound:?}");
+    assert!(named >= 2, "the driver's threads do not carry the name");
+    assert!(bound.len() >= 2, "threads not spread over cores: {bound:?}");
+}
