@@ -110,3 +110,48 @@ impl From<wgpu::RequestDeviceError> for Error {
         Error::Gpu(format!("the device could not be created: {e}"))
     }
 }
+
+thread_local! {
+    /// Set while [`catch_quietly`] runs its closure on this thread.
+    static QUIET_PANICS: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
+/// Runs `f` (third-party decoder code on untrusted bytes), turning a panic into `Err(())`
+/// without the panic message on stderr: the caller reports it as a bad file, and a
+/// "thread panicked" line above that error would read as a crash. The hook installed for
+/// this stays silent only for panics inside `f` on this thread and hands every other
+/// panic to the hook that was there before (a host application's included).
+pub(crate) fn catch_quietly<T>(f: impl FnOnce() -> T) -> std::result::Result<T, ()> {
+    static INSTALL: std::sync::Once = std::sync::Once::new();
+    INSTALL.call_once(|| {
+        let previous = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            if !QUIET_PANICS.with(|q| q.get()) {
+                previous(info);
+            }
+        }));
+    });
+    let was = QUIET_PANICS.with(|q| q.replace(true));
+    let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(f));
+    QUIET_PANICS.with(|q| q.set(was));
+    r.map_err(|_| ())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::catch_quietly;
+
+    #[test]
+    fn a_caught_panic_becomes_an_error_and_other_panics_still_reach_the_hook() {
+        assert_eq!(catch_quietly(|| 7), Ok(7));
+        assert_eq!(catch_quietly(|| -> u32 { panic!("corrupt data") }), Err(()));
+        // Nested: the inner catch restores the outer quiet state.
+        assert_eq!(
+            catch_quietly(|| catch_quietly(|| -> u8 { panic!("inner") }).is_err()),
+            Ok(true)
+        );
+        // Outside the closure panics are loud again (the flag is cleared).
+        assert!(!super::QUIET_PANICS.with(|q| q.get()));
+        assert!(std::panic::catch_unwind(|| panic!("loud")).is_err());
+    }
+}

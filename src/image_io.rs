@@ -433,8 +433,8 @@ fn channel_base(name: &str) -> &str {
 fn no_panic<T>(
     f: impl FnOnce() -> std::result::Result<T, String>,
 ) -> std::result::Result<T, String> {
-    std::panic::catch_unwind(std::panic::AssertUnwindSafe(f))
-        .unwrap_or_else(|_| Err("the OpenEXR decoder failed on this file (corrupt data)".into()))
+    crate::error::catch_quietly(f)
+        .unwrap_or_else(|()| Err("the OpenEXR decoder failed on this file (corrupt data)".into()))
 }
 
 /// Channel names of the first non-deep layer of an EXR, or `None` when its header cannot
@@ -608,7 +608,7 @@ fn decode_any(path: &Path) -> Result<Decoded> {
         reason,
     };
     // Decoders read untrusted bytes: a panic in one is a bad file, not a crash.
-    let e = match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| reader.decode())) {
+    let e = match crate::error::catch_quietly(|| reader.decode()) {
         Ok(Ok(img)) => return Ok(Decoded::Image(img)),
         Ok(Err(e)) => e,
         Err(_) => {
