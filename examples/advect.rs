@@ -7,6 +7,8 @@
 //! ```text
 //! cargo run --release --example advect [OUT_DIR]      # default: the current directory
 //! ```
+//!
+//! OUT_DIR is created if it does not exist.
 
 use std::sync::Arc;
 
@@ -19,6 +21,10 @@ use texsyn::SynthParams;
 
 fn main() -> texsyn::Result<()> {
     let dir = std::path::PathBuf::from(std::env::args().nth(1).unwrap_or_else(|| ".".into()));
+    std::fs::create_dir_all(&dir).map_err(|e| texsyn::Error::Write {
+        path: dir.clone(),
+        reason: format!("cannot create the directory: {e}"),
+    })?;
 
     // The application's own device (any adapter; lavapipe without a GPU).
     let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {

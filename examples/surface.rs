@@ -5,6 +5,8 @@
 //! ```text
 //! cargo run --release --example surface [OUT_DIR]      # default: the current directory
 //! ```
+//!
+//! OUT_DIR is created if it does not exist.
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -23,6 +25,10 @@ use texsyn::SynthParams;
 
 fn main() -> texsyn::Result<()> {
     let dir = PathBuf::from(std::env::args().nth(1).unwrap_or_else(|| ".".into()));
+    std::fs::create_dir_all(&dir).map_err(|e| texsyn::Error::Write {
+        path: dir.clone(),
+        reason: format!("cannot create the directory: {e}"),
+    })?;
     let exemplar = texsyn::image_io::load_exemplar(
         concat!(env!("CARGO_MANIFEST_DIR"), "/assets/brick.png").as_ref(),
     )?;
@@ -72,9 +78,13 @@ fn main() -> texsyn::Result<()> {
             &RenderOptions::default(),
         )?;
         let png = dir.join(format!("{name}.png"));
-        views
-            .save(&png)
-            .map_err(|e| texsyn::Error::Gpu(format!("cannot write {}: {e}", png.display())))?;
+        texsyn::image_io::save_image_atomic(
+            &png,
+            views.width(),
+            views.height(),
+            4,
+            views.as_raw(),
+        )?;
         let glb = dir.join(format!("{name}.glb"));
         let material = MaterialImages {
             base_color,
