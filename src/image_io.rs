@@ -663,18 +663,61 @@ fn decode_any(path: &Path) -> Result<Decoded> {
 static TEMP_COUNTER: AtomicU64 = AtomicU64::new(0);
 
 /// Removes the temporary file on drop unless disarmed (covers errors and panics in the
-/// caller's closure).
+/// caller's closure). While armed, the file is listed in [`PENDING_OUTPUTS`], so that an
+/// interrupted run can remove it too ([`remove_pending_outputs`]).
 struct TempGuard {
     path: PathBuf,
     armed: bool,
+}
+
+impl TempGuard {
+    fn disarm(&mut self) {
+        self.armed = false;
+        forget_pending_output(&self.path);
+    }
 }
 
 impl Drop for TempGuard {
     fn drop(&mut self) {
         if self.armed {
             let _ = fs::remove_file(&self.path);
+            forget_pending_output(&self.path);
         }
     }
+}
+
+/// Temporary files and staging folders of outputs not yet committed (`true`: a folder).
+static PENDING_OUTPUTS: std::sync::Mutex<Vec<(PathBuf, bool)>> = std::sync::Mutex::new(Vec::new());
+
+/// Lists `path` (a temporary file, or a staging folder when `dir`) as an output in
+/// progress: [`remove_pending_outputs`] removes it unless [`forget_pending_output`] was
+/// called first. Destructors clean up after errors and panics; this is for a process
+/// that is interrupted (Ctrl-C, `kill`), where no destructor runs.
+pub fn register_pending_output(path: &Path, dir: bool) {
+    let mut p = PENDING_OUTPUTS.lock().unwrap_or_else(|e| e.into_inner());
+    p.push((path.to_path_buf(), dir));
+}
+
+/// The output at `path` was committed or removed: no longer listed.
+pub fn forget_pending_output(path: &Path) {
+    let mut p = PENDING_OUTPUTS.lock().unwrap_or_else(|e| e.into_inner());
+    p.retain(|(q, _)| q != path);
+}
+
+/// Removes every output in progress (temporary files, staging folders), for a process
+/// about to exit on a signal. Targets are never touched: they hold either the previous
+/// file or a complete new one. Returns how many were removed.
+pub fn remove_pending_outputs() -> usize {
+    let p = PENDING_OUTPUTS.lock().unwrap_or_else(|e| e.into_inner());
+    p.iter()
+        .filter(|(path, dir)| {
+            if *dir {
+                fs::remove_dir_all(path).is_ok()
+            } else {
+                fs::remove_file(path).is_ok()
+            }
+        })
+        .count()
 }
 
 /// Writes a file atomically: `write` fills a temporary file `.{filename}.{pid}.{n}.tmp` in
@@ -716,7 +759,7 @@ impl StagedFile {
             path: self.path.clone(),
             reason: format!("cannot rename the temporary file: {e}"),
         })?;
-        guard.armed = false;
+        guard.disarm();
         // Make the rename durable; not all platforms / file systems allow this.
         if let Ok(d) = File::open(&self.dir) {
             let _ = d.sync_all();
@@ -808,11 +851,14 @@ pub fn stage_file(
     ));
     let tmp_path = dir.join(tmp_name);
 
+    // Listed before it exists, so that no interruption falls between the two.
+    register_pending_output(&tmp_path, false);
     let file = OpenOptions::new()
         .write(true)
         .create_new(true)
         .open(&tmp_path)
         .map_err(|e| {
+            forget_pending_output(&tmp_path);
             werr(format!(
                 "cannot create a temporary file in {}: {e}",
                 dir.display()

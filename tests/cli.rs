@@ -1416,3 +1416,48 @@ fn outputs_their_format_or_memory_cannot_hold_are_refused_early() {
         "is kept in memory until it is encoded",
     );
 }
+
+/// Ctrl-C or `kill` in the middle of an `advect` run into a frame folder: the process
+/// exits with 128 + the signal and its staging folder (`.NAME.partial-PID`, there from
+/// the start of the run) is removed; an existing output is left as it was.
+#[cfg(target_os = "linux")]
+#[test]
+fn an_interrupted_run_removes_its_unfinished_outputs() {
+    for (signal, code) in [("INT", 130), ("TERM", 143)] {
+        let dir = TempDir::new("interrupt");
+        std::fs::write(dir.path("keep.txt"), b"x").unwrap();
+        let mut child = Command::new(BIN)
+            .args([
+                "advect", GRAVEL, "-o", "frames", "--flow", "vortex", "--size", "64", "--frames",
+                "100000", "-q",
+            ])
+            .current_dir(&dir.0)
+            .spawn()
+            .unwrap();
+        // Wait for the staging folder (at most 60 s on a slow machine).
+        let start = std::time::Instant::now();
+        while !dir
+            .files()
+            .iter()
+            .any(|f| f.starts_with(".frames.partial-"))
+        {
+            if let Some(status) = child.try_wait().unwrap() {
+                panic!("advect ended before it was interrupted: {status:?}");
+            }
+            assert!(
+                start.elapsed().as_secs() < 60,
+                "no staging folder appeared: {:?}",
+                dir.files()
+            );
+            std::thread::sleep(std::time::Duration::from_millis(20));
+        }
+        let killed = Command::new("kill")
+            .args([format!("-{signal}"), child.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(killed.success());
+        let status = child.wait().unwrap();
+        assert_eq!(status.code(), Some(code), "SIG{signal}: {status:?}");
+        assert_eq!(dir.files(), vec!["keep.txt".to_string()], "SIG{signal}");
+    }
+}

@@ -195,7 +195,10 @@ impl Staging {
         let prefix = format!(".{}.partial-", name.to_string_lossy());
         remove_stale_staging(&parent, &prefix);
         let dir = parent.join(format!("{prefix}{}", std::process::id()));
+        // Listed before it exists: an interrupted run removes it (see cli::interrupt).
+        texsyn::image_io::register_pending_output(&dir, true);
         std::fs::create_dir(&dir).map_err(|e| {
+            texsyn::image_io::forget_pending_output(&dir);
             fail(format!(
                 "cannot create the folder {}: {e}",
                 target.display()
@@ -232,6 +235,7 @@ impl Staging {
             std::fs::rename(&self.dir, &self.target).map_err(err)?;
         }
         self.committed = true;
+        texsyn::image_io::forget_pending_output(&self.dir);
         Ok(())
     }
 }
@@ -265,6 +269,7 @@ impl Drop for Staging {
     fn drop(&mut self) {
         if !self.committed {
             let _ = std::fs::remove_dir_all(&self.dir);
+            texsyn::image_io::forget_pending_output(&self.dir);
         }
     }
 }

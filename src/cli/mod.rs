@@ -7,6 +7,7 @@ mod analyze;
 mod bench;
 mod eval;
 mod field;
+mod interrupt;
 mod surface;
 mod synth;
 
@@ -182,6 +183,7 @@ pub fn leave_to_exit<T>(value: T) {
 
 /// Runs the CLI and returns the process exit code.
 pub fn main() -> i32 {
+    interrupt::install();
     let cli = Cli::parse();
     let ui = Ui::new(cli.quiet);
     let result = match cli.command {
