@@ -63,8 +63,12 @@ pub fn load_exemplar(path: &Path) -> Result<Exemplar> {
 /// RGB with the two channels in R and G and B = 0 (floats clamped to [0, 1]).
 pub fn load_material_map(path: &Path) -> Result<(u32, u32, u32, Vec<[u8; 4]>)> {
     let img = match decode_any(path)? {
-        Decoded::Image(img) => img,
+        Decoded::Image(img) => {
+            check_finite(&img, path, "material map")?;
+            img
+        }
         Decoded::Exr(exr) if exr.channels() == 1 || exr.alpha => {
+            check_finite_samples(&exr.data, exr.channels(), exr.width, path, "material map")?;
             let to8 = |v: f32| (f32_to_unit(v) * 255.0).round() as u8;
             let pixels = if exr.channels() == 1 {
                 exr.data.iter().map(|&v| grey8(to8(v))).collect()
@@ -79,11 +83,49 @@ pub fn load_material_map(path: &Path) -> Result<(u32, u32, u32, Vec<[u8; 4]>)> {
             };
             return Ok((exr.width, exr.height, exr.channels() as u32, pixels));
         }
-        Decoded::Exr(exr) => exr.to_image(),
+        Decoded::Exr(exr) => {
+            check_finite_samples(&exr.data, exr.channels(), exr.width, path, "material map")?;
+            exr.to_image()
+        }
     };
     let channels = img.color().channel_count() as u32;
     let pixels = img.to_rgba8().pixels().map(|p| p.0).collect();
     Ok((img.width(), img.height(), channels.clamp(1, 4), pixels))
+}
+
+/// Refuses a decoded image with a NaN or infinite sample (only float images can hold
+/// one): masks, material maps and evaluated images would otherwise clamp it silently.
+/// `what` names the input ("feature mask", ...).
+pub fn check_finite(img: &DynamicImage, path: &Path, what: &str) -> Result<()> {
+    let color = img.color();
+    if color.bytes_per_pixel() / color.channel_count().max(1) != 4 {
+        return Ok(());
+    }
+    check_finite_samples(&img.to_rgba32f().into_raw(), 4, img.width(), path, what)
+}
+
+/// [`check_finite`] for interleaved samples of `channels` per pixel.
+fn check_finite_samples(
+    samples: &[f32],
+    channels: usize,
+    width: u32,
+    path: &Path,
+    what: &str,
+) -> Result<()> {
+    match samples.iter().position(|v| !v.is_finite()) {
+        None => Ok(()),
+        Some(i) => {
+            let pixel = (i / channels.max(1)) as u64;
+            Err(Error::BadImage {
+                path: path.to_path_buf(),
+                reason: format!(
+                    "pixel ({}, {}) holds a NaN or infinite value; the {what} needs finite values",
+                    pixel % width.max(1) as u64,
+                    pixel / width.max(1) as u64
+                ),
+            })
+        }
+    }
 }
 
 /// Builds an [`Exemplar`] from an already decoded image (see [`load_exemplar`] for the
@@ -219,7 +261,7 @@ fn check_float_samples(
         for v in p {
             if !v.is_finite() {
                 return Err(format!(
-                    "pixel ({}, {}) is NaN or infinite; the exemplar needs finite colours",
+                    "pixel ({}, {}) is NaN or infinite; texsyn needs finite colours",
                     i as u32 % width.max(1),
                     i as u32 / width.max(1)
                 ));
@@ -587,7 +629,16 @@ fn decode_any(path: &Path) -> Result<Decoded> {
     }
     let reader = image::ImageReader::open(path).map_err(io_err)?;
     let reader = reader.with_guessed_format().map_err(io_err)?;
-    let len = fs::metadata(path).map(|m| m.len()).ok();
+    let meta = fs::metadata(path).ok();
+    if meta.as_ref().is_some_and(|m| !m.is_file()) {
+        // A device (`/dev/zero`), a pipe, a socket: no length to check against and
+        // perhaps no end.
+        return Err(Error::BadImage {
+            path: path.to_path_buf(),
+            reason: "it is not a regular file (a device or a pipe); give an image file".into(),
+        });
+    }
+    let len = meta.map(|m| m.len());
     if len == Some(0) {
         return Err(Error::BadImage {
             path: path.to_path_buf(),
@@ -595,12 +646,33 @@ fn decode_any(path: &Path) -> Result<Decoded> {
         });
     }
     if reader.format().is_none() {
+        let analysis = crate::session::is_analysis_file(path).unwrap_or(false);
         return Err(Error::BadImage {
             path: path.to_path_buf(),
-            reason: "unrecognized image format (neither the content nor the extension names \
-                     a supported format)"
-                .into(),
+            reason: if analysis {
+                "it is a texsyn analysis file, not an image; give the exemplar image it was \
+                 made from (synth, surface, advect and bench take analysis files in place \
+                 of the exemplar)"
+                    .into()
+            } else {
+                "unrecognized image format (neither the content nor the extension names \
+                 a supported format)"
+                    .into()
+            },
         });
+    }
+    // The JPEG decoder turns a truncated file into an image whose missing part is grey,
+    // without an error: look for the end of the image first.
+    if reader.format() == Some(ImageFormat::Jpeg) {
+        let bytes = fs::read(path).map_err(io_err)?;
+        if jpeg_lacks_end(&bytes) {
+            return Err(Error::BadImage {
+                path: path.to_path_buf(),
+                reason: "the JPEG file is truncated (its image data ends before the \
+                         end-of-image marker); export or download it again"
+                    .into(),
+            });
+        }
     }
     let is_exr = reader.format() == Some(ImageFormat::OpenExr);
     let bad = |reason: String| Error::BadImage {
@@ -655,6 +727,102 @@ fn decode_any(path: &Path) -> Result<Decoded> {
     }
     Err(bad(reason))
 }
+
+/// Reads the whole file at `path`, refusing files of more than `max` bytes and anything
+/// that is not a regular file (a device such as `/dev/zero` or a pipe could fill the
+/// memory). Errors are [`Error::Io`] naming `path`; `what` names the input in the
+/// message.
+pub fn read_file_capped(path: &Path, max: u64, what: &str) -> Result<Vec<u8>> {
+    use std::io::Read;
+    let io = |source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let file = File::open(path).map_err(io)?;
+    let meta = file.metadata().map_err(io)?;
+    if !meta.is_file() {
+        return Err(io(std::io::Error::other(if meta.is_dir() {
+            "it is a directory, not a file"
+        } else {
+            "it is not a regular file (a device or a pipe); give a file"
+        })));
+    }
+    let too_large = |n: u64| {
+        io(std::io::Error::other(format!(
+            "{} MiB; texsyn reads {what} of at most {} MiB",
+            n >> 20,
+            max >> 20
+        )))
+    };
+    if meta.len() > max {
+        return Err(too_large(meta.len()));
+    }
+    let mut bytes = Vec::new();
+    file.take(max + 1).read_to_end(&mut bytes).map_err(io)?;
+    if bytes.len() as u64 > max {
+        // It grew while it was read.
+        return Err(too_large(bytes.len() as u64));
+    }
+    Ok(bytes)
+}
+
+/// Whether a JPEG (starting with SOI) ends before its image's end-of-image marker:
+/// walks the marker segments, and the entropy-coded data after each start of scan, to
+/// the EOI of the main image (an EXIF thumbnail's lies inside its segment and is
+/// skipped; data after the EOI, such as a motion photo's video, is not looked at).
+/// Structural damage it cannot follow is left to the decoder (`false`).
+pub fn jpeg_lacks_end(b: &[u8]) -> bool {
+    if b.len() < 2 || b[0] != 0xFF || b[1] != 0xD8 {
+        return false;
+    }
+    let mut i = 2;
+    loop {
+        // The next marker: 0xFF (fill bytes allowed) then its code.
+        if i >= b.len() {
+            return true;
+        }
+        if b[i] != 0xFF {
+            return false;
+        }
+        while i < b.len() && b[i] == 0xFF {
+            i += 1;
+        }
+        let Some(&code) = b.get(i) else {
+            return true;
+        };
+        i += 1;
+        match code {
+            0xD9 => return false,
+            0x01 | 0xD0..=0xD7 => continue,
+            _ => {
+                let Some(len) = b.get(i..i + 2) else {
+                    return true;
+                };
+                let len = u16::from_be_bytes([len[0], len[1]]) as usize;
+                if len < 2 {
+                    return false;
+                }
+                i += len;
+                if code == 0xDA {
+                    // Entropy-coded data up to the next marker that is not a stuffed
+                    // 0xFF00 or a restart marker.
+                    loop {
+                        let (Some(&x), Some(&y)) = (b.get(i), b.get(i + 1)) else {
+                            return true;
+                        };
+                        if x == 0xFF && y != 0x00 && !(0xD0..=0xD7).contains(&y) && y != 0xFF {
+                            break;
+                        }
+                        i += if x == 0xFF && y != 0xFF { 2 } else { 1 };
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// The most bytes a mesh file (or one of its external buffers) may have.
+pub const MAX_MESH_FILE_BYTES: u64 = 2 << 30;
 
 // ---------------------------------------------------------------------------------------
 // Atomic writes

@@ -191,6 +191,22 @@ fn repair_drops_degenerates_computes_normals_and_rejects_bad_input() {
         assert!((*n - Vec3::Y).length() < 1e-6, "computed normal {n}");
     }
 
+    // Degeneracy is judged per triangle: a unit square far from a square a million times
+    // larger keeps its triangles (the old mesh-relative threshold dropped them).
+    let mut far = Mesh::plane(1.0, 1.0, 1);
+    let big = Mesh::plane(1e6, 1e6, 1);
+    let base = far.positions.len() as u32;
+    far.positions
+        .extend(big.positions.iter().map(|p| *p + Vec3::new(1e7, 0.0, 0.0)));
+    far.normals.extend(big.normals.iter().copied());
+    far.uvs = None;
+    far.triangles
+        .extend(big.triangles.iter().map(|t| t.map(|i| i + base)));
+    let n_far = far.triangles.len();
+    let report = far.validate_and_repair().unwrap();
+    assert_eq!(report.dropped_degenerate, 0);
+    assert_eq!(far.triangles.len(), n_far);
+
     // Only the zero normals are recomputed; the others are kept.
     let mut s = Mesh::uv_sphere(1.0, 16, 8);
     s.normals[5] = Vec3::ZERO;
@@ -654,6 +670,14 @@ fn mesh_tangents_and_scales() {
     let scale = ScaleSource::Constant(0.5);
     let e = TangentField::build(&mesh, None, &DirectionSource::MeshTangents, &scale).unwrap_err();
     assert!(e.to_string().contains("TANGENT"), "{e}");
+    // Tangents that are all zero (as NaN ones load) or along the normals: refused, not a
+    // field of arbitrary fallback directions.
+    for bad in [Vec4::new(0.0, 0.0, 0.0, 1.0), Vec4::new(0.0, 1.0, 0.0, 1.0)] {
+        mesh.tangents = Some(vec![bad; mesh.positions.len()]);
+        let e =
+            TangentField::build(&mesh, None, &DirectionSource::MeshTangents, &scale).unwrap_err();
+        assert!(e.to_string().contains("usable TANGENT"), "{e}");
+    }
     mesh.tangents = Some(vec![Vec4::new(0.0, 0.1, 1.0, 1.0); mesh.positions.len()]);
     let f = TangentField::build(&mesh, None, &DirectionSource::MeshTangents, &scale).unwrap();
     let (t, b, s) = f.frame(&mesh, 3, [0.2, 0.2, 0.6]);

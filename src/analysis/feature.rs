@@ -116,6 +116,7 @@ impl FeatureMask {
     /// image: [`Error::BadImage`].
     pub fn load(path: &Path) -> Result<Self> {
         let img = crate::image_io::open_image(path)?;
+        crate::image_io::check_finite(&img, path, "feature mask")?;
         let mut m = Self::from_image(&img);
         m.source = Some(path.to_path_buf());
         Ok(m)

@@ -186,11 +186,19 @@ impl Staging {
         };
         // Like file outputs: the folder itself is created, its parent must exist.
         if !parent.is_dir() {
-            return Err(fail(format!(
-                "cannot write {}: directory {} does not exist; create it first",
-                target.display(),
-                parent.display()
-            )));
+            return Err(fail(if parent.exists() {
+                format!(
+                    "cannot write {}: {} is not a directory",
+                    target.display(),
+                    parent.display()
+                )
+            } else {
+                format!(
+                    "cannot write {}: directory {} does not exist; create it first",
+                    target.display(),
+                    parent.display()
+                )
+            }));
         }
         let prefix = format!(".{}.partial-", name.to_string_lossy());
         remove_stale_staging(&parent, &prefix);

@@ -381,30 +381,12 @@ fn json_number(v: f64) -> String {
     }
 }
 
-/// Any image the `image` crate reads, as floats.
+/// Any image texsyn reads (the library's hardened decoding: decoder panics, truncated
+/// JPEGs, devices refused), as floats; non-finite samples (a float EXR) are refused, since
+/// every figure would silently skip or absorb them.
 fn load_image(path: &Path) -> CliResult<FloatImage> {
-    let bad = |reason: String| texsyn::Error::BadImage {
-        path: path.to_path_buf(),
-        reason,
-    };
-    let io = |source| texsyn::Error::Io {
-        path: path.to_path_buf(),
-        source,
-    };
-    if path.is_dir() {
-        return Err(bad("it is a directory, not an image file".into()).into());
-    }
-    let reader = image::ImageReader::open(path)
-        .map_err(io)?
-        .with_guessed_format()
-        .map_err(io)?;
-    if std::fs::metadata(path).map(|m| m.len()).map_err(io)? == 0 {
-        return Err(bad("the file is empty".into()).into());
-    }
-    if reader.format().is_none() {
-        return Err(bad("unrecognized image format".into()).into());
-    }
-    let img = reader.decode().map_err(|e| bad(e.to_string()))?;
+    let img = texsyn::image_io::open_image(path)?;
+    texsyn::image_io::check_finite(&img, path, "image evaluated")?;
     Ok(FloatImage::from_dynamic(&img))
 }
 

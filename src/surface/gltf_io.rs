@@ -20,7 +20,7 @@
 //! and every accessor's byte range are checked before any data is read.
 
 use std::collections::BTreeMap;
-use std::fs;
+
 use std::path::{Path, PathBuf};
 
 use glam::{Mat3, Mat4, Vec2, Vec3, Vec4};
@@ -75,10 +75,11 @@ pub struct MaterialImages {
 /// A file that cannot be read is [`Error::Io`]; anything wrong with its content (or with
 /// the buffers it references) is [`Error::BadMesh`].
 pub fn load_mesh(path: &Path) -> Result<(Mesh, LoadReport)> {
-    let bytes = fs::read(path).map_err(|source| Error::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let bytes = crate::image_io::read_file_capped(
+        path,
+        crate::image_io::MAX_MESH_FILE_BYTES,
+        "mesh files",
+    )?;
     let bad = |reason: String| Error::BadMesh {
         path: path.to_path_buf(),
         reason,
@@ -326,17 +327,21 @@ fn read_buffer_uri(
     let decoded = percent_decode(relative)
         .ok_or_else(|| format!("buffer {i} has a malformed uri '{uri}' (invalid UTF-8)"))?;
     let file = base.join(&decoded);
-    match fs::read(&file) {
+    match crate::image_io::read_file_capped(&file, crate::image_io::MAX_MESH_FILE_BYTES, "buffers")
+    {
         Ok(data) => Ok((data, format!("'{}'", file.display()))),
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Err(format!(
+        Err(Error::Io { source: e, .. }) if e.kind() == std::io::ErrorKind::NotFound => {
+            Err(format!(
             "buffer {i} is stored in the external file '{decoded}' ({}), which does not exist: \
              copy it next to {gltf_name}, or export the model as a self-contained .glb",
             file.display()
-        )),
-        Err(e) => Err(format!(
+        ))
+        }
+        Err(Error::Io { source: e, .. }) => Err(format!(
             "cannot read buffer {i} from the external file '{}': {e}",
             file.display()
         )),
+        Err(e) => Err(e.to_string()),
     }
 }
 

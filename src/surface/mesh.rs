@@ -213,8 +213,10 @@ impl Mesh {
     /// infinite position, normal, uv or tangent, `uvs` or `tangents` whose length differs
     /// from `positions`, every triangle degenerate.
     ///
-    /// Repairs (reported): triangles with a repeated index or with an area below
-    /// `1e-12 * (bounding-box diagonal)^2` are dropped; when `normals` does not have one
+    /// Repairs (reported): triangles with a repeated index, slivers (area at most
+    /// `1e-12 * (longest edge)^2`: collinear corners) and specks (area at most `1e-24 *
+    /// (bounding-box diagonal)^2`) are dropped; the test is per triangle, so a small part
+    /// far from a large one keeps its triangles; when `normals` does not have one
     /// entry per position, area-weighted unit vertex normals are computed for all
     /// vertices (accumulated over vertices welded by exact position, so uv seams get no
     /// normal seam); when only some normals are zero-length, those are computed the same
@@ -228,7 +230,7 @@ impl Mesh {
         // single-precision rounding.
         let (lo, hi) = self.bounding_box();
         let diag2 = (hi - lo).as_dvec3().length_squared();
-        let min_area = 1e-12 * diag2;
+        let min_area = 1e-24 * diag2;
         let before = self.triangles.len();
         let positions = &self.positions;
         self.triangles.retain(|&[a, b, c]| {
@@ -239,7 +241,11 @@ impl Mesh {
             let pb = positions[b as usize].as_dvec3();
             let pc = positions[c as usize].as_dvec3();
             let area = 0.5 * (pb - pa).cross(pc - pa).length();
-            area > min_area
+            let longest2 = (pb - pa)
+                .length_squared()
+                .max((pc - pb).length_squared())
+                .max((pa - pc).length_squared());
+            area > min_area && area > 1e-12 * longest2
         });
         let dropped = before - self.triangles.len();
         if self.triangles.is_empty() {

@@ -198,6 +198,16 @@ impl TangentField {
                         (t - n * n.dot(t)).try_normalize()
                     })
                     .collect();
+                // A few unusable tangents take a fallback below; none usable (all zero,
+                // NaN in the file, or along the normals) would be a field of fallbacks.
+                if per_vertex.iter().all(|t| t.is_none()) {
+                    return Err(invalid(
+                        "direction `tangents`: no vertex of the mesh has a usable TANGENT \
+                         (every one is zero, not finite, or along its normal); fix the \
+                         mesh's tangents or use another direction source (e.g. `up`)"
+                            .into(),
+                    ));
+                }
                 let g = Graph::new(mesh);
                 // Per welded vertex: its first vertex's tangent (0 = the frame's
                 // reference axis where that has none).
@@ -932,9 +942,14 @@ pub fn parse_constraints(text: &str, name: &str) -> Result<Vec<(Vec3, Vec3)>> {
 
 /// Reads a constraint file; see [`parse_constraints`].
 pub fn read_constraints(path: &Path) -> Result<Vec<(Vec3, Vec3)>> {
-    let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
+    // A text file of a few lines per constraint: 64 MiB is far more than any real list.
+    let bytes = crate::image_io::read_file_capped(path, 64 << 20, "constraint files")?;
+    let text = String::from_utf8(bytes).map_err(|_| Error::Io {
         path: path.to_path_buf(),
-        source,
+        source: std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            "not a UTF-8 text file (a constraint file holds lines of numbers)",
+        ),
     })?;
     parse_constraints(&text, &path.display().to_string())
 }
