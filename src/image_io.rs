@@ -965,7 +965,15 @@ pub fn stage_file(
         path: path.to_path_buf(),
         reason,
     };
-    let resolved = follow_symlinks(path).map_err(werr)?;
+    // A link to a stream (`/dev/stdout` -> `/proc/self/fd/1` -> `pipe:[..]`, whose target
+    // names no path) is written through as it is; other links are followed to the file
+    // they name, which is then replaced.
+    let stream = fs::metadata(path).is_ok_and(|m| !m.is_file() && !m.is_dir());
+    let resolved = if stream {
+        path.to_path_buf()
+    } else {
+        follow_symlinks(path).map_err(werr)?
+    };
     let path = resolved.as_path();
 
     let Some(file_name) = path.file_name() else {
