@@ -207,6 +207,12 @@ fn repair_drops_degenerates_computes_normals_and_rejects_bad_input() {
     assert_eq!(report.dropped_degenerate, 0);
     assert_eq!(far.triangles.len(), n_far);
 
+    // Coordinates whose products overflow f32 are refused with the vertex named.
+    let mut huge = Mesh::plane(1.0, 1.0, 1);
+    huge.positions[1].x = 1e38;
+    let e = huge.validate_and_repair().unwrap_err().to_string();
+    assert!(e.contains("vertex 1") && e.contains("1e38"), "{e}");
+
     // Only the zero normals are recomputed; the others are kept.
     let mut s = Mesh::uv_sphere(1.0, 16, 8);
     s.normals[5] = Vec3::ZERO;

@@ -163,10 +163,27 @@ impl Mesh {
                 self.positions[i].x, self.positions[i].y, self.positions[i].z
             )));
         }
-        if let Some(i) = self.normals.iter().position(|v| !v.is_finite()) {
+        // Areas and normals multiply two coordinates: beyond this they overflow f32.
+        const MAX_COORD: f32 = 1e18;
+        if let Some(i) = self
+            .positions
+            .iter()
+            .position(|p| p.abs().max_element() > MAX_COORD)
+        {
+            let p = self.positions[i];
             return Err(invalid(format!(
-                "mesh vertex {i} has a non-finite normal {:?}",
-                self.normals[i]
+                "mesh vertex {i} lies at ({:e}, {:e}, {:e}), beyond +-1e18 (after the node \
+                 transforms), where areas and normals overflow: scale the mesh down and \
+                 export it again",
+                p.x, p.y, p.z
+            )));
+        }
+        if let Some(i) = self.normals.iter().position(|v| !v.is_finite()) {
+            let v = self.normals[i];
+            return Err(invalid(format!(
+                "mesh vertex {i} has a non-finite normal ({}, {}, {}): fix or drop the \
+                 mesh's normals (texsyn computes them when there are none)",
+                v.x, v.y, v.z
             )));
         }
         if let Some(uvs) = &self.uvs {
@@ -178,8 +195,8 @@ impl Mesh {
             }
             if let Some(i) = uvs.iter().position(|v| !v.is_finite()) {
                 return Err(invalid(format!(
-                    "mesh vertex {i} has a non-finite uv {:?}",
-                    uvs[i]
+                    "mesh vertex {i} has a non-finite uv ({}, {})",
+                    uvs[i].x, uvs[i].y
                 )));
             }
         }
@@ -191,9 +208,10 @@ impl Mesh {
                 )));
             }
             if let Some(i) = tangents.iter().position(|v| !v.is_finite()) {
+                let t = tangents[i];
                 return Err(invalid(format!(
-                    "mesh vertex {i} has a non-finite tangent {:?}",
-                    tangents[i]
+                    "mesh vertex {i} has a non-finite tangent ({}, {}, {}, {})",
+                    t.x, t.y, t.z, t.w
                 )));
             }
         }
