@@ -1480,3 +1480,43 @@ fn output_to_dev_stdout_in_a_pipe() {
     );
     assert!(dir.files().is_empty(), "{:?}", dir.files());
 }
+
+/// `advect --per-pass`: rows by level, and a pass that runs on some frames only shows its
+/// mean per frame (marked), never "0 dispatches".
+#[test]
+fn advect_per_pass_table_is_by_level_without_zero_rows() {
+    let dir = TempDir::new("perpass");
+    let out = texsyn(
+        &dir,
+        &[
+            "advect",
+            GRAVEL,
+            "-o",
+            "fr",
+            "--flow",
+            "vortex",
+            "--size",
+            "64",
+            "--frames",
+            "5",
+            "--per-pass",
+            "-q",
+        ],
+    );
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let stdout = text(&out.stdout);
+    let rows: Vec<Vec<&str>> = stdout
+        .lines()
+        .skip_while(|l| !l.trim_start().starts_with("level"))
+        .skip(1)
+        .map(|l| l.split_whitespace().collect::<Vec<_>>())
+        .take_while(|r| r.len() >= 4 && r[0].parse::<usize>().is_ok())
+        .collect();
+    assert!(rows.len() >= 4, "{stdout}");
+    let levels: Vec<usize> = rows.iter().map(|r| r[0].parse().unwrap()).collect();
+    assert!(levels.windows(2).all(|w| w[0] <= w[1]), "{stdout}");
+    for r in &rows {
+        let d: f64 = r[2].trim_end_matches('*').parse().unwrap();
+        assert!(d > 0.0, "{stdout}");
+    }
+}

@@ -368,35 +368,68 @@ pub fn print_pass_table(
     runs: &[Vec<(texsyn::passes::PassKind, usize, Duration)>],
     note: &str,
 ) -> CliResult<()> {
-    let mut groups: Vec<((usize, texsyn::passes::PassKind), usize, Vec<Duration>)> = Vec::new();
+    // Per (level, pass): dispatches and time summed within each run. A pass that runs in
+    // some runs only (advection corrects a level every other frame) shows its mean per
+    // run, marked, since the median of mostly-zero runs would read as 0.
+    let mut groups: Vec<((usize, texsyn::passes::PassKind), Vec<usize>, Vec<Duration>)> =
+        Vec::new();
     for (r, run) in runs.iter().enumerate() {
         for &(kind, level, t) in run {
             let i = match groups.iter().position(|g| g.0 == (level, kind)) {
                 Some(i) => i,
                 None => {
-                    groups.push(((level, kind), 0, vec![Duration::ZERO; runs.len()]));
+                    groups.push((
+                        (level, kind),
+                        vec![0; runs.len()],
+                        vec![Duration::ZERO; runs.len()],
+                    ));
                     groups.len() - 1
                 }
             };
-            groups[i].1 += (r == 0) as usize;
+            groups[i].1[r] += 1;
             groups[i].2[r] += t;
         }
     }
+    // By level, each level's passes in the order they first ran.
+    groups.sort_by_key(|g| g.0 .0);
     let mut total = Duration::ZERO;
+    let mut any_partial = false;
     ui.out(format!(
         "  {:<6} {:<14} {:>10} {:>11}",
         "level", "pass", "dispatches", "median"
     ))?;
-    for ((level, kind), count, sums) in groups {
-        let m = stats(sums).median;
-        total += m;
+    let n = runs.len().max(1);
+    for ((level, kind), counts, sums) in groups {
+        let every_run = counts.iter().all(|&c| c > 0);
+        let (dispatches, time) = if every_run {
+            (
+                {
+                    let mut c = counts.clone();
+                    c.sort_unstable();
+                    c[c.len() / 2].to_string()
+                },
+                stats(sums).median,
+            )
+        } else {
+            any_partial = true;
+            (
+                format!("{:.1}*", counts.iter().sum::<usize>() as f64 / n as f64),
+                sums.iter().sum::<Duration>() / n as u32,
+            )
+        };
+        total += time;
         ui.out(format!(
             "  {:<6} {:<14} {:>10} {:>11}",
             level,
             format!("{kind:?}"),
-            count,
-            fmt_duration(m)
+            dispatches,
+            fmt_duration(time)
         ))?;
+    }
+    if any_partial {
+        ui.out(
+            "  * ran in some runs only: mean per run of the dispatches and the time".to_string(),
+        )?;
     }
     ui.out(format!(
         "  sum of medians ({note}): {}",
