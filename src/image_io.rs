@@ -719,10 +719,22 @@ fn decode_any(path: &Path) -> Result<Decoded> {
                     ))
                 });
             }
-            reason = format!(
-                "{reason} (its channels: {}; texsyn reads RGB, RGBA, 1- and 2-channel OpenEXRs)",
-                names.join(", ")
-            );
+            let colour = |c: &str| matches!(c.to_ascii_uppercase().as_str(), "R" | "G" | "B" | "A");
+            let rgb = ["R", "G", "B"].iter().all(|c| {
+                names
+                    .iter()
+                    .any(|n| channel_base(n).eq_ignore_ascii_case(c))
+            });
+            reason = if rgb && names.iter().all(|n| colour(channel_base(n))) {
+                // Channels the decoder reads: the data itself is bad.
+                format!("{reason} (the file is truncated or corrupt)")
+            } else {
+                format!(
+                    "{reason} (its channels: {}; texsyn reads RGB, RGBA, 1- and 2-channel \
+                     OpenEXRs)",
+                    names.join(", ")
+                )
+            };
         }
     }
     Err(bad(reason))

@@ -306,7 +306,12 @@ fn too_large(what: &'static str, width: u32, height: u32, max: u32) -> Error {
         width,
         height,
         limit: format!("max_texture_dimension_2d = {max}"),
-        hint: "use a smaller --atlas-size, or fewer --views or a smaller --view-size",
+        // Only the input that sets this size helps.
+        hint: match what {
+            "rendered image" => "use fewer --views or a smaller --view-size",
+            "high-resolution exemplar" => "use a smaller --magnify or a smaller exemplar",
+            _ => "use a smaller --atlas-size",
+        },
     }
 }
 
