@@ -1462,23 +1462,23 @@ fn an_interrupted_run_removes_its_unfinished_outputs() {
     }
 }
 
-/// `-o /dev/stdout` into a pipe: the link leads to a stream, which is written through
-/// (it used to be followed to `pipe:[..]` and fail to create a temporary file there).
+/// `-o /dev/stdout` (or `-o -`) into a pipe: the link leads to a stream, which is written
+/// through (it used to be followed to `pipe:[..]` and fail to create a temporary file
+/// there; `-` made a file named `-`).
 #[cfg(target_os = "linux")]
 #[test]
 fn output_to_dev_stdout_in_a_pipe() {
     let dir = TempDir::new("stdout");
-    let out = texsyn(
-        &dir,
-        &["synth", GRAVEL, "-o", "/dev/stdout", "--size", "32", "-q"],
-    );
-    assert!(out.status.success(), "{}", text(&out.stderr));
-    assert!(
-        out.stdout.starts_with(b"\x89PNG\r\n\x1a\n"),
-        "{:?}",
-        &out.stdout[..8.min(out.stdout.len())]
-    );
-    assert!(dir.files().is_empty(), "{:?}", dir.files());
+    for target in ["/dev/stdout", "-"] {
+        let out = texsyn(&dir, &["synth", GRAVEL, "-o", target, "--size", "32", "-q"]);
+        assert!(out.status.success(), "{}", text(&out.stderr));
+        assert!(
+            out.stdout.starts_with(b"\x89PNG\r\n\x1a\n"),
+            "{:?}",
+            &out.stdout[..8.min(out.stdout.len())]
+        );
+        assert!(dir.files().is_empty(), "{:?}", dir.files());
+    }
 }
 
 /// `advect --per-pass`: rows by level, and a pass that runs on some frames only shows its

@@ -33,8 +33,9 @@ pub struct SynthArgs {
     pub exemplar: PathBuf,
 
     /// Output image; the format follows the extension (png, jpg, bmp, tga, tif, webp, gif,
-    /// pnm, exr, hdr; none: png). Written atomically, only once synthesis succeeded
-    #[arg(short, long, value_name = "OUT")]
+    /// pnm, exr, hdr; none: png). Written atomically, only once synthesis succeeded. `-`
+    /// writes a PNG to standard output
+    #[arg(short, long, value_name = "OUT", value_parser = parse_output)]
     pub output: PathBuf,
 
     /// Output size: N (square) or WxH
@@ -178,6 +179,18 @@ pub struct AlsoMap {
     pub normal: bool,
     /// A normal map with green = y down (DirectX), `normal-dx:`.
     pub green_down: bool,
+}
+
+/// `-` is standard output (a PNG: the name has no extension), where the system names it.
+fn parse_output(s: &str) -> Result<PathBuf, String> {
+    if s == "-" {
+        let stdout = std::path::Path::new("/dev/stdout");
+        if stdout.exists() {
+            return Ok(stdout.to_path_buf());
+        }
+        return Err("`-` (standard output) is not available on this system; give a file".into());
+    }
+    Ok(PathBuf::from(s))
 }
 
 fn parse_copy_budget(s: &str) -> Result<f32, String> {
