@@ -930,7 +930,12 @@ impl GpuSynthesizer {
         let Some(report) = hook.as_mut() else {
             return ctx.scoped(|| self.record(ctx, encoder, plan, schedule, target, false, maps));
         };
-        // Every level but the last is submitted and waited for here.
+        // Every level but the last is submitted and waited for here. Between those
+        // submissions another thread may submit work of its own (an `encode` on this
+        // synthesizer, say): the coordinates live in a buffer of this call's, not in the
+        // shared scratch buffer.
+        let coords = ctx.scoped(|| coords_buffer(ctx, plan.coord_buffer_len(), "texsyn coords"))?;
+        let state = Some((&coords, &self.no_velocity));
         let levels: Vec<&[Dispatch]> = schedule.chunk_by(|a, b| a.level == b.level).collect();
         let (last, earlier) = match levels.split_last() {
             Some((last, earlier)) => (*last, earlier),
@@ -938,7 +943,7 @@ impl GpuSynthesizer {
         };
         for level in earlier {
             ctx.scoped(|| {
-                self.record(ctx, encoder, plan, level, target, false, &[]);
+                self.record_with(ctx, encoder, plan, level, target, false, &[], state);
                 let done = std::mem::replace(
                     encoder,
                     ctx.device.create_command_encoder(&Default::default()),
@@ -948,7 +953,7 @@ impl GpuSynthesizer {
             wait(ctx)?;
             report(level[0].level as u32 + 1, plan.levels.len() as u32);
         }
-        ctx.scoped(|| self.record(ctx, encoder, plan, last, target, false, maps))
+        ctx.scoped(|| self.record_with(ctx, encoder, plan, last, target, false, maps, state))
     }
 
     /// Records the first `count` dispatches of the synthesis into `encoder`, writing
