@@ -404,3 +404,73 @@ fn progress_syntheses_are_not_disturbed_by_other_threads_encoding() {
     assert!(result.coords == reference.coords);
     ctx.take_uncaptured_errors().expect("no wgpu errors");
 }
+
+/// Misuse found by an API audit: a call with another device's context is refused (it
+/// used to spoil the cached pipelines of the synthesizer's own device), a destroyed
+/// velocity buffer fails before anything is recorded, and a destroyed device gives
+/// errors, not panics (wgpu's `create_buffer_init` panics there).
+#[test]
+fn another_context_a_destroyed_buffer_or_device_fail_cleanly() {
+    let session = Session::builder()
+        .exemplar(Exemplar::from_rgba8(48, 48, &gravel_rgba8_crop()).unwrap())
+        .size(32, 32)
+        .build()
+        .expect("session");
+    let ctx = session.context();
+    let params = texsyn::SynthParams {
+        width: 32,
+        height: 32,
+        ..Default::default()
+    };
+    let reference = session
+        .synthesizer()
+        .synthesize_to_host(ctx, &params)
+        .unwrap();
+    let other = texsyn::GpuContext::headless().expect("a second device");
+    let err = session
+        .synthesizer()
+        .synthesize_to_host(&other, &params)
+        .expect_err("another device's context was accepted");
+    assert!(err.to_string().contains("another GpuContext"), "{err}");
+    let mut encoder = other.device.create_command_encoder(&Default::default());
+    assert!(session
+        .synthesizer()
+        .encode(&other, &mut encoder, &params)
+        .is_err());
+    other
+        .take_uncaptured_errors()
+        .expect("nothing reached the other device");
+    // The synthesizer's own device is unharmed.
+    let again = session
+        .synthesizer()
+        .synthesize_to_host(ctx, &params)
+        .unwrap();
+    assert!(again.colors == reference.colors);
+
+    // A destroyed velocity buffer: an error, and the caller's encoder still submits.
+    let mut advection = session.advection(AdvectOptions::default()).unwrap();
+    let velocity = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("destroyed velocity"),
+        size: 32 * 32 * 8,
+        usage: wgpu::BufferUsages::STORAGE,
+        mapped_at_creation: false,
+    });
+    velocity.destroy();
+    let mut encoder = ctx.device.create_command_encoder(&Default::default());
+    assert!(advection
+        .encode_step(ctx, &mut encoder, &velocity, 1.0)
+        .is_err());
+    ctx.queue.submit([encoder.finish()]);
+    ctx.take_uncaptured_errors()
+        .expect("the caller's encoder was spoiled");
+
+    // A destroyed device: no panic from any call (reading back fails; recording and
+    // submitting may report nothing, as wgpu drops work on a lost device).
+    ctx.device.destroy();
+    assert!(session.run().is_err());
+    let _ = session.run_gpu();
+    let mut encoder = ctx.device.create_command_encoder(&Default::default());
+    let _ = session.synthesizer().encode(ctx, &mut encoder, &params);
+    let _ = advection.step(ctx, &vec![[1.0, 0.0]; 32 * 32], 1.0);
+    let _ = session.advection(AdvectOptions::default());
+}

@@ -260,8 +260,11 @@ impl Advection {
         self.output.srgb_view(ctx)
     }
 
-    /// Changes synthesis parameters between frames (randomness, passes, coherence,
-    /// distance, field, seed): the size, window and atlas must stay the same.
+    /// Changes synthesis parameters between frames (randomness, coherence, distance,
+    /// field, seed): the size, window and atlas must stay the same, and so
+    /// must the regions each level computes, which the correction passes' margins set
+    /// (a change of `passes`, `second_finest_passes` or `finest_passes` that moves them
+    /// is refused).
     pub fn set_params(&mut self, params: &SynthParams) -> Result<()> {
         let params = Self::synthesis_params(params);
         let plan = SynthPlan::new(self.synthesizer.analysis(), &params)?;
@@ -274,7 +277,8 @@ impl Advection {
         if !same_regions || params.surface.is_some() != self.params.surface.is_some() {
             return Err(Error::InvalidParameter(
                 "advection parameters may change between frames, but not the output size, \
-                 window or atlas: start a new advection for those"
+                 window or atlas, nor the number of correction passes where it changes the \
+                 levels' margins: start a new advection for those"
                     .into(),
             ));
         }
@@ -311,6 +315,7 @@ impl Advection {
     /// Checks `dt` and the host velocities (count, finite), quantizes them and writes
     /// them to the velocity buffer.
     fn upload_velocity(&self, ctx: &GpuContext, velocity: &[[f32; 2]], dt: f32) -> Result<()> {
+        self.synthesizer.check_context(ctx)?;
         Self::check_dt(dt)?;
         let n = self.params.width as usize * self.params.height as usize;
         if velocity.len() != n {
@@ -376,8 +381,11 @@ impl Advection {
     /// encoder: nothing goes through the host. The buffer holds one `vec2<f32>` (output
     /// pixels per unit of time) per output pixel, row-major with a stride of the output's
     /// width; only its first `width * height` entries are read. It must come from the
-    /// same device and have usage STORAGE. Non-finite velocities count as 0. Every check
-    /// runs before anything is recorded, so an error leaves the encoder usable.
+    /// same device and have usage STORAGE, and be unmapped when the encoder is submitted.
+    /// Non-finite velocities count as 0. Every check (size, usage, a destroyed, invalid or
+    /// foreign buffer) runs before anything is recorded, so an error leaves the encoder
+    /// usable; a buffer still mapped is found only by the caller's submit (wgpu tells no
+    /// earlier).
     pub fn encode_step(
         &mut self,
         ctx: &GpuContext,
@@ -385,6 +393,7 @@ impl Advection {
         velocity: &wgpu::Buffer,
         dt: f32,
     ) -> Result<()> {
+        self.synthesizer.check_context(ctx)?;
         Self::check_dt(dt)?;
         let n = self.params.width as u64 * self.params.height as u64;
         if velocity.size() < n * 8 {
@@ -401,11 +410,13 @@ impl Advection {
                 velocity.usage()
             )));
         }
-        ctx.scoped(|| {
+        // The bind group first, in its own error scope: a buffer that is destroyed,
+        // invalid or from another device fails here, before anything is recorded.
+        let group = ctx.scoped(|| {
             let mut uniform = [0u8; 16];
             uniform[..4].copy_from_slice(&(n as u32).to_le_bytes());
             uniform[4..8].copy_from_slice(&dt.to_le_bytes());
-            let params = wgpu::util::DeviceExt::create_buffer_init(
+            let params = crate::gpu::buffer_init(
                 &ctx.device,
                 &wgpu::util::BufferInitDescriptor {
                     label: Some("texsyn velocity params"),
@@ -413,7 +424,7 @@ impl Advection {
                     usage: wgpu::BufferUsages::UNIFORM,
                 },
             );
-            let group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("texsyn velocity"),
                 layout: &self.quantize_layout,
                 entries: &[
@@ -436,7 +447,9 @@ impl Advection {
                         resource: self.velocity.as_entire_binding(),
                     },
                 ],
-            });
+            })
+        })?;
+        ctx.scoped(|| {
             let mut pass = encoder.begin_compute_pass(&Default::default());
             pass.set_pipeline(&self.quantize);
             pass.set_bind_group(0, &group, &[]);

@@ -247,6 +247,13 @@ impl GpuContext {
     }
 
     /// The synthesis passes' bind group layout and pipelines on this device.
+    /// Whether `self` and `other` are the same context (or clones of one): objects made
+    /// on one belong to its device. Compared by the shared pipeline cache, since wgpu's
+    /// device equality compares ids, which coincide across instances.
+    pub(crate) fn same_as(&self, other: &GpuContext) -> bool {
+        Arc::ptr_eq(&self.pipelines, &other.pipelines)
+    }
+
     pub(crate) fn pass_pipelines(&self) -> Arc<crate::gpu::synth::PassPipelines> {
         self.pipelines
             .get_or_init(|| Arc::new(crate::gpu::synth::PassPipelines::new(&self.device)))

@@ -4,8 +4,6 @@
 
 use std::sync::{Arc, Mutex};
 
-use wgpu::util::DeviceExt;
-
 use super::context::GpuContext;
 use super::shaders::{self, ShaderSource};
 use crate::analysis::{Analysis, LevelData, DIM};
@@ -165,6 +163,9 @@ struct Scratch {
 /// An exemplar uploaded to a device, ready to synthesize any number of textures.
 pub struct GpuSynthesizer {
     analysis: Arc<Analysis>,
+    /// The context everything here was made on (a clone): calls with another context
+    /// are refused ([`Self::check_context`]).
+    context: GpuContext,
     /// The device's pass pipelines, shared by every synthesizer on it.
     pipelines: Arc<PassPipelines>,
     /// 16-byte stand-in for the velocity binding outside advection.
@@ -231,12 +232,14 @@ impl FineTables {
             (et.join().expect("quarter table thread"), qe)
         });
         let init = |label: &str, t: &[[i16; DIM]]| {
-            ctx.device
-                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            crate::gpu::buffer_init(
+                &ctx.device,
+                &wgpu::util::BufferInitDescriptor {
                     label: Some(label),
                     contents: bytemuck::cast_slice(t),
                     usage: wgpu::BufferUsages::STORAGE,
-                })
+                },
+            )
         };
         Some(Self {
             et_base: p.et_base,
@@ -767,20 +770,27 @@ impl GpuSynthesizer {
                 bytemuck::cast_slice(&l.offsets)
             })?;
             let init = |label: &str, contents: &[u8]| {
-                device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some(label),
-                    contents,
-                    usage: wgpu::BufferUsages::STORAGE,
-                })
+                crate::gpu::buffer_init(
+                    &device,
+                    &wgpu::util::BufferInitDescriptor {
+                        label: Some(label),
+                        contents,
+                        usage: wgpu::BufferUsages::STORAGE,
+                    },
+                )
             };
-            let proj = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("texsyn proj"),
-                contents: bytemuck::cast_slice(&proj),
-                usage: wgpu::BufferUsages::UNIFORM,
-            });
+            let proj = crate::gpu::buffer_init(
+                &device,
+                &wgpu::util::BufferInitDescriptor {
+                    label: Some("texsyn proj"),
+                    contents: bytemuck::cast_slice(&proj),
+                    usage: wgpu::BufferUsages::UNIFORM,
+                },
+            );
             let colors = init("texsyn colors", &padded(&a.colors));
 
             Ok(Self {
+                context: ctx.clone(),
                 pipelines: ctx.pass_pipelines(),
                 no_velocity: init("texsyn no velocity", &[0u8; 16]),
                 et,
@@ -833,7 +843,25 @@ impl GpuSynthesizer {
     }
 
     /// Checks an output size against the device limits before any work is recorded.
+    /// Refuses a context other than the one this synthesizer was made on (or a clone of
+    /// it): its buffers and pipelines would be bound on that context's device (a
+    /// validation error that spoils the device's cached pipelines, or a panic in wgpu
+    /// across instances). Two contexts made with [`GpuContext::from_device`] from the
+    /// same device count as different: clone the first instead.
+    pub fn check_context(&self, ctx: &GpuContext) -> Result<()> {
+        if !self.context.same_as(ctx) {
+            return Err(Error::InvalidParameter(
+                "this synthesizer was made on another GpuContext than the one given; use \
+                 the context it was created with, or a clone of it (a second \
+                 GpuContext::from_device on the same device counts as another)"
+                    .into(),
+            ));
+        }
+        Ok(())
+    }
+
     pub(crate) fn check_output(&self, ctx: &GpuContext, plan: &SynthPlan) -> Result<()> {
+        self.check_context(ctx)?;
         let limits = ctx.limits();
         let p = &plan.params;
         let max_dim = limits.max_texture_dimension_2d;
@@ -1018,13 +1046,14 @@ impl GpuSynthesizer {
         let (jac, surface) = self.jacobian_buffers(ctx, plan);
         // Parameters live in their own buffer per call: a later call must not overwrite
         // them before this one's commands have run.
-        let params = ctx
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        let params = crate::gpu::buffer_init(
+            &ctx.device,
+            &wgpu::util::BufferInitDescriptor {
                 label: Some("texsyn params"),
                 contents: &bytes,
                 usage: wgpu::BufferUsages::UNIFORM,
-            });
+            },
+        );
         // Corrections that read quarter pixels at the finest level read them from its
         // supersampled tables when those fit (a second bind group: the tables replace
         // `et` and `qe`, so no binding is added to the layout).
@@ -1178,12 +1207,14 @@ impl GpuSynthesizer {
             }
         }
         let init = |label: &str, words: &[u8]| {
-            ctx.device
-                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            crate::gpu::buffer_init(
+                &ctx.device,
+                &wgpu::util::BufferInitDescriptor {
                     label: Some(label),
                     contents: if words.is_empty() { &[0u8; 16] } else { words },
                     usage: wgpu::BufferUsages::STORAGE,
-                })
+                },
+            )
         };
         let jac = init("texsyn jacobians", bytemuck::cast_slice(&plan.jacobians()));
         let surface = init(
@@ -1266,6 +1297,7 @@ impl GpuSynthesizer {
     /// follows with the same field and regions), and so is the `qe` table when its
     /// corrections read it. Optional; the synthesis is the same either way.
     pub fn prepare(&self, ctx: &GpuContext, params: &SynthParams) -> Result<()> {
+        self.check_context(ctx)?;
         // The Jacobian field (20-30 ms at 512x512 on the host) alongside, which the
         // synthesis then finds in its cache, and beside it the `qe` table if a
         // correction reads it (anisometric synthesis: 15-25 ms for a 400 px exemplar).
@@ -1580,12 +1612,14 @@ impl GpuSynthesizer {
             let buffers: Vec<wgpu::Buffer> = sources
                 .iter()
                 .map(|(pixels, _)| {
-                    ctx.device
-                        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    crate::gpu::buffer_init(
+                        &ctx.device,
+                        &wgpu::util::BufferInitDescriptor {
                             label: Some("texsyn extra map"),
                             contents: bytemuck::cast_slice(pixels),
                             usage: wgpu::BufferUsages::STORAGE,
-                        })
+                        },
+                    )
                 })
                 .collect::<Vec<_>>();
             let textures: Vec<wgpu::Texture> = sources
@@ -1765,13 +1799,14 @@ impl GpuSynthesizer {
             let scratch_view = scratch.create_view(&Default::default());
             let big = self.output_texture(ctx, w, h);
             let big_view = big.create_view(&Default::default());
-            let hi_buffer = ctx
-                .device
-                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            let hi_buffer = crate::gpu::buffer_init(
+                &ctx.device,
+                &wgpu::util::BufferInitDescriptor {
                     label: Some("texsyn high-resolution exemplar"),
                     contents: bytemuck::cast_slice(hi),
                     usage: wgpu::BufferUsages::STORAGE,
-                });
+                },
+            );
             (big, big_view, scratch_view, hi_buffer)
         })?;
         let target = MapTarget {

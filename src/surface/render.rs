@@ -33,7 +33,6 @@
 //!   up); views are placed left to right.
 
 use glam::{Mat4, Vec3, Vec4};
-use wgpu::util::DeviceExt;
 
 use super::mesh::Mesh;
 use crate::error::{Error, Result};
@@ -682,11 +681,14 @@ fn render_cameras(
             mipmap_filter: wgpu::MipmapFilterMode::Linear,
             ..Default::default()
         });
-        let params = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("texsyn render params"),
-            contents: bytemuck::bytes_of(&data.params),
-            usage: wgpu::BufferUsages::UNIFORM,
-        });
+        let params = crate::gpu::buffer_init(
+            &device,
+            &wgpu::util::BufferInitDescriptor {
+                label: Some("texsyn render params"),
+                contents: bytemuck::bytes_of(&data.params),
+                usage: wgpu::BufferUsages::UNIFORM,
+            },
+        );
 
         let texture_entry = |binding: u32, filterable: bool| wgpu::BindGroupLayoutEntry {
             binding,
@@ -763,11 +765,14 @@ fn render_cameras(
         let view_groups: Vec<wgpu::BindGroup> = view_uniforms
             .iter()
             .map(|u| {
-                let buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some("texsyn render view"),
-                    contents: bytemuck::bytes_of(u),
-                    usage: wgpu::BufferUsages::UNIFORM,
-                });
+                let buffer = crate::gpu::buffer_init(
+                    &device,
+                    &wgpu::util::BufferInitDescriptor {
+                        label: Some("texsyn render view"),
+                        contents: bytemuck::bytes_of(u),
+                        usage: wgpu::BufferUsages::UNIFORM,
+                    },
+                );
                 device.create_bind_group(&wgpu::BindGroupDescriptor {
                     label: Some("texsyn render view"),
                     layout: &layout1,
@@ -850,16 +855,22 @@ fn render_cameras(
             cache: None,
         });
 
-        let vertex_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("texsyn render vertices"),
-            contents: bytemuck::cast_slice(&vertices),
-            usage: wgpu::BufferUsages::VERTEX,
-        });
-        let index_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("texsyn render indices"),
-            contents: bytemuck::cast_slice(&mesh.triangles),
-            usage: wgpu::BufferUsages::INDEX,
-        });
+        let vertex_buffer = crate::gpu::buffer_init(
+            &device,
+            &wgpu::util::BufferInitDescriptor {
+                label: Some("texsyn render vertices"),
+                contents: bytemuck::cast_slice(&vertices),
+                usage: wgpu::BufferUsages::VERTEX,
+            },
+        );
+        let index_buffer = crate::gpu::buffer_init(
+            &device,
+            &wgpu::util::BufferInitDescriptor {
+                label: Some("texsyn render indices"),
+                contents: bytemuck::cast_slice(&mesh.triangles),
+                usage: wgpu::BufferUsages::INDEX,
+            },
+        );
 
         let target = |label: &str, format, samples, usage| {
             device.create_texture(&wgpu::TextureDescriptor {
