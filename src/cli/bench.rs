@@ -427,9 +427,7 @@ pub fn print_pass_table(
         ))?;
     }
     if any_partial {
-        ui.out(
-            "  * ran in some runs only: mean per run of the dispatches and the time".to_string(),
-        )?;
+        ui.out("  * ran in some runs only: mean per run of the dispatches and the time")?;
     }
     ui.out(format!(
         "  sum of medians ({note}): {}",

@@ -771,7 +771,7 @@ impl GpuSynthesizer {
             })?;
             let init = |label: &str, contents: &[u8]| {
                 crate::gpu::buffer_init(
-                    &device,
+                    device,
                     &wgpu::util::BufferInitDescriptor {
                         label: Some(label),
                         contents,
@@ -780,7 +780,7 @@ impl GpuSynthesizer {
                 )
             };
             let proj = crate::gpu::buffer_init(
-                &device,
+                device,
                 &wgpu::util::BufferInitDescriptor {
                     label: Some("texsyn proj"),
                     contents: bytemuck::cast_slice(&proj),

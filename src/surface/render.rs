@@ -682,7 +682,7 @@ fn render_cameras(
             ..Default::default()
         });
         let params = crate::gpu::buffer_init(
-            &device,
+            device,
             &wgpu::util::BufferInitDescriptor {
                 label: Some("texsyn render params"),
                 contents: bytemuck::bytes_of(&data.params),
@@ -766,7 +766,7 @@ fn render_cameras(
             .iter()
             .map(|u| {
                 let buffer = crate::gpu::buffer_init(
-                    &device,
+                    device,
                     &wgpu::util::BufferInitDescriptor {
                         label: Some("texsyn render view"),
                         contents: bytemuck::bytes_of(u),
@@ -856,7 +856,7 @@ fn render_cameras(
         });
 
         let vertex_buffer = crate::gpu::buffer_init(
-            &device,
+            device,
             &wgpu::util::BufferInitDescriptor {
                 label: Some("texsyn render vertices"),
                 contents: bytemuck::cast_slice(&vertices),
@@ -864,7 +864,7 @@ fn render_cameras(
             },
         );
         let index_buffer = crate::gpu::buffer_init(
-            &device,
+            device,
             &wgpu::util::BufferInitDescriptor {
                 label: Some("texsyn render indices"),
                 contents: bytemuck::cast_slice(&mesh.triangles),
