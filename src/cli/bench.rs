@@ -371,8 +371,9 @@ pub fn print_pass_table(
     // Per (level, pass): dispatches and time summed within each run. A pass that runs in
     // some runs only (advection corrects a level every other frame) shows its mean per
     // run, marked, since the median of mostly-zero runs would read as 0.
-    let mut groups: Vec<((usize, texsyn::passes::PassKind), Vec<usize>, Vec<Duration>)> =
-        Vec::new();
+    // ((level, pass), dispatches per run, time per run)
+    type Group = ((usize, texsyn::passes::PassKind), Vec<usize>, Vec<Duration>);
+    let mut groups: Vec<Group> = Vec::new();
     for (r, run) in runs.iter().enumerate() {
         for &(kind, level, t) in run {
             let i = match groups.iter().position(|g| g.0 == (level, kind)) {
