@@ -210,6 +210,27 @@ fn a_downlevel_device_is_refused_clearly() {
         .unwrap()
         .to_string();
     assert!(e.contains("storage buffers"), "{e}");
+    // Building the pipelines ahead is refused the same way, before wgpu's validation.
+    let e = ctx.prepare_pipelines(false).unwrap_err().to_string();
+    assert!(e.contains("storage buffers"), "{e}");
+    ctx.take_uncaptured_errors().unwrap();
+
+    // Default limits but workgroups of fewer than 64 invocations.
+    let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+        required_limits: wgpu::Limits {
+            max_compute_invocations_per_workgroup: 32,
+            max_compute_workgroup_size_x: 32,
+            ..wgpu::Limits::default()
+        },
+        ..Default::default()
+    }))
+    .unwrap();
+    let ctx = GpuContext::from_device(device, queue);
+    let e = GpuSynthesizer::new(&ctx, analysis())
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(e.contains("workgroups"), "{e}");
     ctx.take_uncaptured_errors().unwrap();
 }
 

@@ -59,6 +59,7 @@ impl Advection {
         params: &SynthParams,
         options: AdvectOptions,
     ) -> Result<Self> {
+        crate::gpu::synth::check_device_limits(&ctx.limits())?;
         let params = Self::synthesis_params(params);
         options.check()?;
         let plan = SynthPlan::new(synthesizer.analysis(), &params)?;

@@ -266,6 +266,7 @@ impl GpuContext {
     /// drivers). Optional: pipelines are otherwise built when first needed. Every
     /// synthesizer on this context shares them.
     pub fn prepare_pipelines(&self, anisometric: bool) -> Result<()> {
+        crate::gpu::synth::check_device_limits(&self.limits())?;
         self.pass_pipelines().prepare(self, anisometric)
     }
 
@@ -279,6 +280,7 @@ impl GpuContext {
         analysis: &crate::Analysis,
         params: &crate::SynthParams,
     ) -> Result<()> {
+        crate::gpu::synth::check_device_limits(&self.limits())?;
         self.pass_pipelines()
             .prepare_plan(self, analysis, params, |_| Ok(()))
     }

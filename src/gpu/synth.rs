@@ -64,7 +64,9 @@ impl GpuSynthesis {
 
     /// Copies the texture back to the host as tightly packed RGBA8 rows (waits for the
     /// GPU). For when the pixels are needed after all; `synthesize_to_host` does the
-    /// synthesis and this read-back in one submission.
+    /// synthesis and this read-back in one submission. After
+    /// [`GpuSynthesizer::encode`], call it only once the encoder is submitted: before,
+    /// the texture is still blank (zeros), which this cannot tell from a result.
     pub fn read_rgba8(&self, ctx: &GpuContext) -> Result<Vec<u8>> {
         let (w, h) = (self.width, self.height);
         let row = (w as u64 * 4).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT as u64);
@@ -890,9 +892,9 @@ impl GpuSynthesizer {
                 p.width,
                 p.height,
                 format!(
-                    "its coordinate pyramid (or Jacobian field) needs {} MiB in one buffer, the device allows {} MiB",
-                    bytes >> 20,
-                    max >> 20
+                    "its coordinate pyramid (or Jacobian field) needs {} in one buffer, the device allows {}",
+                    fmt_bytes(bytes),
+                    fmt_bytes(max)
                 ),
                 "synthesize it in windows (SynthParams::origin) and assemble them",
             ));
@@ -1592,9 +1594,9 @@ impl GpuSynthesizer {
                     w,
                     h,
                     format!(
-                        "with {count} map(s) its read-back needs {} MiB in one buffer, the device allows {} MiB",
-                        need >> 20,
-                        max >> 20
+                        "with {count} map(s) its read-back needs {} in one buffer, the device allows {}",
+                        fmt_bytes(need),
+                        fmt_bytes(max)
                     ),
                     "resynthesize fewer maps at once, or smaller windows (SynthParams::origin)",
                 ));
@@ -2027,12 +2029,11 @@ pub(crate) enum ProbeRun {
     Done { synthesis: Synthesis, copy: f64 },
 }
 
-/// Checks, before any analysis, that an exemplar of this size fits the device's
-/// buffer limits (its per-level tables live in single storage buffers).
-pub fn check_exemplar_fits(ctx: &GpuContext, width: u32, height: u32, k: u32) -> Result<()> {
-    let limits = ctx.limits();
-    // The passes bind 8 storage buffers and one storage texture (WebGPU's defaults;
-    // downlevel devices allow fewer).
+/// The limits every texsyn pipeline needs, checked before any is built (a downlevel
+/// device would otherwise fail in wgpu's validation): 8 storage buffers and a storage
+/// texture per stage, and workgroups of 64 invocations (8x8 for the passes, 64x1 for
+/// advection's velocity upload): WebGPU's defaults.
+pub(crate) fn check_device_limits(limits: &wgpu::Limits) -> Result<()> {
     if limits.max_storage_buffers_per_shader_stage < 8
         || limits.max_storage_textures_per_shader_stage < 1
     {
@@ -2043,6 +2044,38 @@ pub fn check_exemplar_fits(ctx: &GpuContext, width: u32, height: u32, k: u32) ->
             limits.max_storage_textures_per_shader_stage
         )));
     }
+    if limits.max_compute_invocations_per_workgroup < 64
+        || limits.max_compute_workgroup_size_x < 64
+        || limits.max_compute_workgroup_size_y < 8
+    {
+        return Err(Error::Gpu(format!(
+            "the device allows compute workgroups of {} invocations ({} x {}); texsyn needs \
+             64 (64 x 8): create the device with at least wgpu::Limits::default()",
+            limits.max_compute_invocations_per_workgroup,
+            limits.max_compute_workgroup_size_x,
+            limits.max_compute_workgroup_size_y
+        )));
+    }
+    Ok(())
+}
+
+/// A byte count for messages: MiB with a decimal under 10 MiB, KiB under 1 MiB, so that
+/// a need and a limit never print the same while they differ.
+pub(crate) fn fmt_bytes(b: u64) -> String {
+    if b < 1 << 20 {
+        format!("{:.1} KiB", b as f64 / 1024.0)
+    } else if b < 10 << 20 {
+        format!("{:.2} MiB", b as f64 / (1u64 << 20) as f64)
+    } else {
+        format!("{} MiB", b >> 20)
+    }
+}
+
+/// Checks, before any analysis, that an exemplar of this size fits the device's
+/// buffer limits (its per-level tables live in single storage buffers).
+pub fn check_exemplar_fits(ctx: &GpuContext, width: u32, height: u32, k: u32) -> Result<()> {
+    let limits = ctx.limits();
+    check_device_limits(&limits)?;
     let px = width as u64 * height as u64;
     let levels = crate::analysis::level_count(width, height) as u64 + 1;
     // Level 0 has no et/qe tables (LevelData::et).
@@ -2058,9 +2091,9 @@ pub fn check_exemplar_fits(ctx: &GpuContext, width: u32, height: u32, k: u32) ->
             width,
             height,
             format!(
-                "its tables need {} MiB in one buffer, the device allows {} MiB",
-                biggest >> 20,
-                max >> 20
+                "its tables need {} in one buffer, the device allows {}",
+                fmt_bytes(biggest),
+                fmt_bytes(max)
             ),
             if offset_bytes > table_bytes {
                 "use a smaller k or a smaller exemplar"
