@@ -185,21 +185,7 @@ impl Staging {
             _ => PathBuf::from("."),
         };
         // Like file outputs: the folder itself is created, its parent must exist.
-        if !parent.is_dir() {
-            return Err(fail(if parent.exists() {
-                format!(
-                    "cannot write {}: {} is not a directory",
-                    target.display(),
-                    parent.display()
-                )
-            } else {
-                format!(
-                    "cannot write {}: directory {} does not exist; create it first",
-                    target.display(),
-                    parent.display()
-                )
-            }));
-        }
+        super::check_parent_dir(target, &parent)?;
         let prefix = format!(".{}.partial-", name.to_string_lossy());
         remove_stale_staging(&parent, &prefix);
         let dir = parent.join(format!("{prefix}{}", std::process::id()));

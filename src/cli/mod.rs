@@ -429,6 +429,26 @@ pub fn parse_coherence(s: &str) -> Result<f32, String> {
 
 /// Checks, before any work, that `path` can be created: its directory exists.
 /// (The file itself is only written, atomically, once the work has succeeded.)
+/// `dir`, where `path` is to be written, must be an existing directory.
+pub fn check_parent_dir(path: &Path, dir: &Path) -> CliResult<()> {
+    if dir.is_dir() {
+        return Ok(());
+    }
+    Err(fail(if dir.exists() {
+        format!(
+            "cannot write {}: {} is not a directory",
+            path.display(),
+            dir.display()
+        )
+    } else {
+        format!(
+            "cannot write {}: directory {} does not exist; create it first",
+            path.display(),
+            dir.display()
+        )
+    }))
+}
+
 pub fn check_output_dir(path: &Path) -> CliResult<()> {
     if path.file_name().is_none() {
         return Err(fail(format!(
@@ -460,21 +480,7 @@ pub fn check_output_dir(path: &Path) -> CliResult<()> {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
         _ => PathBuf::from("."),
     };
-    if !dir.is_dir() {
-        return Err(fail(if dir.exists() {
-            format!(
-                "cannot write {}: {} is not a directory",
-                path.display(),
-                dir.display()
-            )
-        } else {
-            format!(
-                "cannot write {}: directory {} does not exist; create it first",
-                path.display(),
-                dir.display()
-            )
-        }));
-    }
+    check_parent_dir(path, &dir)?;
     // Probe that the directory takes new files (read-only mounts, /proc, permissions):
     // failing now costs nothing, failing after the work would leave other outputs half
     // written.
