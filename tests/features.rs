@@ -582,6 +582,9 @@ fn cli_feature_mask_and_appearance() {
     write_mask_png(&small, 64, 64, |_, y| y % 16 < 2);
     let blank = dir.path("blank.png");
     write_mask_png(&blank, 128, 128, |_, _| false);
+    // Blank and of the wrong size: the size is the first thing to fix.
+    let small_blank = dir.path("small_blank.png");
+    write_mask_png(&small_blank, 64, 64, |_, _| true);
     let mask_s = mask.to_str().unwrap();
     let small_s = small.to_str().unwrap();
     let blank_s = blank.to_str().unwrap();
@@ -609,7 +612,10 @@ fn cli_feature_mask_and_appearance() {
         // A blank mask would silently change nothing.
         let mut a = with(&["--feature-mask"]);
         a.push(blank_s.to_string());
-        run(a, 1, &["no pixel is a feature"]);
+        run(a, 1, &["no pixel is a feature", "blank.png"]);
+        let mut a = with(&["--feature-mask"]);
+        a.push(small_blank.to_str().unwrap().to_string());
+        run(a, 1, &["64x64", "exemplar is 128x128", "exemplar's size"]);
         for w in ["-1", "nan", "inf", "abc"] {
             let mut a = with(&["--feature-weight", w, "--feature-mask"]);
             a.push(mask_s.to_string());

@@ -178,6 +178,25 @@ impl FeatureMask {
         }
         Ok(())
     }
+
+    /// Checks that the mask has both values. A blank mask (no feature, or nothing but
+    /// features) adds a constant channel: the result would silently equal one without a
+    /// mask, at a higher cost (an empty or inverted export is the likely cause). The
+    /// analysis accepts such masks; the CLI refuses them with this check, after
+    /// [`Self::check_size`], so that a mask of the wrong size says so first.
+    pub fn check_not_blank(&self) -> Result<()> {
+        let coverage = self.coverage();
+        if coverage == 0.0 || coverage == 1.0 {
+            return Err(Error::InvalidParameter(format!(
+                "{}: {} pixel is a feature (the image has a single value), so the mask would \
+                 change nothing; features are the bright pixels of a two-valued image (e.g. \
+                 white mortar on black)",
+                self.name(),
+                if coverage == 0.0 { "no" } else { "every" }
+            )));
+        }
+        Ok(())
+    }
 }
 
 /// Checks a feature weight: finite and in `0..=MAX_FEATURE_WEIGHT`.

@@ -71,6 +71,7 @@ pub fn run(ui: &Ui, args: AnalyzeArgs) -> CliResult<()> {
     let t0 = Instant::now();
     let exemplar = ui.load_exemplar(&args.exemplar)?;
     let load_time = t0.elapsed();
+    super::check_feature_mask(&options, exemplar.width, exemplar.height)?;
 
     let t1 = Instant::now();
     let analysis = analysis::analyze(&exemplar, &options, ui.analysis_progress())?;

@@ -129,22 +129,25 @@ impl AppearanceArgs {
         if let Some(path) = &self.feature_mask {
             let mask = texsyn::analysis::FeatureMask::load(path)
                 .map_err(|e| fail(format!("--feature-mask: {e}")))?;
-            // A blank mask adds a constant channel: the run would silently equal one
-            // without a mask (an empty or inverted export is the likely cause).
-            let coverage = mask.coverage();
-            if coverage == 0.0 || coverage == 1.0 {
-                return Err(fail(format!(
-                    "--feature-mask {}: {} pixel is a feature (the image has a single value), so \
-                     the mask would change nothing; features are the bright pixels of a \
-                     two-valued image (e.g. white mortar on black)",
-                    path.display(),
-                    if coverage == 0.0 { "no" } else { "every" }
-                )));
-            }
             options.feature_mask = Some(mask);
         }
         Ok(())
     }
+}
+
+/// Checks the loaded `--feature-mask` (if any) against the exemplar it goes with: its
+/// size first, then that it is not blank. The analysis accepts a blank mask (it changes
+/// nothing), but given on the command line one is a mistake (an empty or inverted export).
+pub fn check_feature_mask(
+    options: &texsyn::AnalysisOptions,
+    width: u32,
+    height: u32,
+) -> CliResult<()> {
+    if let Some(mask) = &options.feature_mask {
+        mask.check_size(width, height)?;
+        mask.check_not_blank()?;
+    }
+    Ok(())
 }
 
 pub fn parse_feature_weight(s: &str) -> Result<f32, String> {

@@ -570,6 +570,7 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
                     )));
                 }
             }
+            super::check_feature_mask(&options, ex.width, ex.height)?;
             let a = texsyn::analysis::analyze(&ex, &options, ui.analysis_progress())?;
             (a, false, Some(t.elapsed()))
         }
