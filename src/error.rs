@@ -52,8 +52,9 @@ pub enum Error {
         hint: &'static str,
     },
     /// A parameter or option is out of range or inconsistent (size, seed window, field,
-    /// flow, pass counts, ...); the message names it and the accepted values.
-    #[error("invalid parameter: {0}")]
+    /// flow, pass counts, ...); the message names it and the accepted values (it is the
+    /// whole text: no "invalid parameter" prefix, which only repeated what it says).
+    #[error("{0}")]
     InvalidParameter(String),
     /// An analysis file (from `texsyn analyze`) that cannot be decoded: wrong magic or
     /// format version, truncated, checksum mismatch, invalid content. Re-run `texsyn analyze`.
