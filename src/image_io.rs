@@ -24,7 +24,7 @@ use std::io::{BufReader, BufWriter, Cursor, Write};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use image::{DynamicImage, ImageFormat};
+use image::{DynamicImage, ImageBuffer, ImageFormat, Pixel};
 
 use crate::analysis::{check_exemplar_size, Exemplar};
 use crate::error::{Error, Result};
@@ -144,101 +144,24 @@ fn exemplar_from(img: &DynamicImage, path: Option<&Path>) -> Result<Exemplar> {
     check_exemplar_size(width, height)?;
     let n = width as usize * height as usize;
 
-    let mut values: Vec<f32>;
     let mut colors: Vec<[u8; 4]> = Vec::with_capacity(n);
-    let channels: u32;
-
-    match img {
-        DynamicImage::ImageLuma8(b) => {
-            channels = 1;
-            values = Vec::with_capacity(n);
-            for p in b.pixels() {
-                values.push(p.0[0] as f32 / 255.0);
-                colors.push(grey8(p.0[0]));
-            }
-        }
-        DynamicImage::ImageLumaA8(b) => {
-            channels = 1;
-            values = Vec::with_capacity(n);
-            for p in b.pixels() {
-                values.push(p.0[0] as f32 / 255.0);
-                colors.push(grey8(p.0[0]));
-            }
-        }
-        DynamicImage::ImageLuma16(b) => {
-            channels = 1;
-            values = Vec::with_capacity(n);
-            for p in b.pixels() {
-                values.push(p.0[0] as f32 / 65535.0);
-                colors.push(grey8(u16_to_u8(p.0[0])));
-            }
-        }
-        DynamicImage::ImageLumaA16(b) => {
-            channels = 1;
-            values = Vec::with_capacity(n);
-            for p in b.pixels() {
-                values.push(p.0[0] as f32 / 65535.0);
-                colors.push(grey8(u16_to_u8(p.0[0])));
-            }
-        }
-        DynamicImage::ImageRgb8(b) => {
-            channels = 3;
-            values = Vec::with_capacity(3 * n);
-            for p in b.pixels() {
-                push_rgb8(&mut values, &mut colors, [p.0[0], p.0[1], p.0[2]]);
-            }
-        }
-        DynamicImage::ImageRgba8(b) => {
-            channels = 3;
-            values = Vec::with_capacity(3 * n);
-            for p in b.pixels() {
-                push_rgb8(&mut values, &mut colors, [p.0[0], p.0[1], p.0[2]]);
-            }
-        }
-        DynamicImage::ImageRgb16(b) => {
-            channels = 3;
-            values = Vec::with_capacity(3 * n);
-            for p in b.pixels() {
-                push_rgb16(&mut values, &mut colors, [p.0[0], p.0[1], p.0[2]]);
-            }
-        }
-        DynamicImage::ImageRgba16(b) => {
-            channels = 3;
-            values = Vec::with_capacity(3 * n);
-            for p in b.pixels() {
-                push_rgb16(&mut values, &mut colors, [p.0[0], p.0[1], p.0[2]]);
-            }
-        }
-        DynamicImage::ImageRgb32F(b) => {
-            check_float_samples(b.pixels().map(|p| [p.0[0], p.0[1], p.0[2]]), width)
-                .map_err(bad_floats)?;
-            channels = 3;
-            values = Vec::with_capacity(3 * n);
-            for p in b.pixels() {
-                push_rgbf(&mut values, &mut colors, [p.0[0], p.0[1], p.0[2]]);
-            }
-        }
-        DynamicImage::ImageRgba32F(b) => {
-            check_float_samples(b.pixels().map(|p| [p.0[0], p.0[1], p.0[2]]), width)
-                .map_err(bad_floats)?;
-            channels = 3;
-            values = Vec::with_capacity(3 * n);
-            for p in b.pixels() {
-                push_rgbf(&mut values, &mut colors, [p.0[0], p.0[1], p.0[2]]);
-            }
-        }
+    let (channels, values): (u32, Vec<f32>) = match img {
+        DynamicImage::ImageLuma8(b) => (1, samples(b, n, &mut colors, push_grey8)),
+        DynamicImage::ImageLumaA8(b) => (1, samples(b, n, &mut colors, push_grey8)),
+        DynamicImage::ImageLuma16(b) => (1, samples(b, n, &mut colors, push_grey16)),
+        DynamicImage::ImageLumaA16(b) => (1, samples(b, n, &mut colors, push_grey16)),
+        DynamicImage::ImageRgb8(b) => (3, samples(b, n, &mut colors, push_rgb8)),
+        DynamicImage::ImageRgba8(b) => (3, samples(b, n, &mut colors, push_rgb8)),
+        DynamicImage::ImageRgb16(b) => (3, samples(b, n, &mut colors, push_rgb16)),
+        DynamicImage::ImageRgba16(b) => (3, samples(b, n, &mut colors, push_rgb16)),
+        DynamicImage::ImageRgb32F(b) => (3, float_samples(b, n, &mut colors).map_err(bad_floats)?),
+        DynamicImage::ImageRgba32F(b) => (3, float_samples(b, n, &mut colors).map_err(bad_floats)?),
         // `DynamicImage` is non-exhaustive: anything new goes through float RGB.
         other => {
-            channels = 3;
-            values = Vec::with_capacity(3 * n);
             let b = other.to_rgb32f();
-            check_float_samples(b.pixels().map(|p| [p.0[0], p.0[1], p.0[2]]), width)
-                .map_err(bad_floats)?;
-            for p in b.pixels() {
-                push_rgbf(&mut values, &mut colors, [p.0[0], p.0[1], p.0[2]]);
-            }
+            (3, float_samples(&b, n, &mut colors).map_err(bad_floats)?)
         }
-    }
+    };
 
     Ok(Exemplar {
         width,
@@ -299,6 +222,49 @@ fn f32_to_unit(v: f32) -> f32 {
     } else {
         v.clamp(0.0, 1.0)
     }
+}
+
+/// An exemplar's values (`C` per pixel, `C * n` reserved) and colours from the first
+/// `C` channels of every pixel of `b` (grey or RGB; alpha, where there is one, is
+/// ignored), converted by `push`: one loop for all the buffer types `exemplar_from`
+/// reads, with alpha or without.
+fn samples<P: Pixel, const C: usize>(
+    b: &ImageBuffer<P, Vec<P::Subpixel>>,
+    n: usize,
+    colors: &mut Vec<[u8; 4]>,
+    mut push: impl FnMut(&mut Vec<f32>, &mut Vec<[u8; 4]>, [P::Subpixel; C]),
+) -> Vec<f32> {
+    let mut values = Vec::with_capacity(C * n);
+    for p in b.pixels() {
+        push(&mut values, colors, leading(p));
+    }
+    values
+}
+
+/// The first `C` channels of `p`.
+fn leading<P: Pixel, const C: usize>(p: &P) -> [P::Subpixel; C] {
+    std::array::from_fn(|i| p.channels()[i])
+}
+
+/// [`samples`] of a float RGB or RGBA buffer, after [`check_float_samples`] (the
+/// reason of a refusal is returned for the caller to name the file).
+fn float_samples<P: Pixel<Subpixel = f32>>(
+    b: &ImageBuffer<P, Vec<f32>>,
+    n: usize,
+    colors: &mut Vec<[u8; 4]>,
+) -> std::result::Result<Vec<f32>, String> {
+    check_float_samples(b.pixels().map(leading), b.width())?;
+    Ok(samples(b, n, colors, push_rgbf))
+}
+
+fn push_grey8(values: &mut Vec<f32>, colors: &mut Vec<[u8; 4]>, [v]: [u8; 1]) {
+    values.push(v as f32 / 255.0);
+    colors.push(grey8(v));
+}
+
+fn push_grey16(values: &mut Vec<f32>, colors: &mut Vec<[u8; 4]>, [v]: [u16; 1]) {
+    values.push(v as f32 / 65535.0);
+    colors.push(grey8(u16_to_u8(v)));
 }
 
 fn push_rgb8(values: &mut Vec<f32>, colors: &mut Vec<[u8; 4]>, c: [u8; 3]) {

@@ -2114,17 +2114,35 @@ pub(crate) fn wait(ctx: &GpuContext) -> Result<()> {
 }
 
 pub(crate) fn read_buffer(ctx: &GpuContext, buffer: &wgpu::Buffer) -> Result<Vec<u8>> {
+    read_mapped(
+        buffer,
+        || wait(ctx),
+        "buffer mapping was cancelled",
+        "reading back results",
+    )
+}
+
+/// Maps `buffer` for reading, runs `wait` (a device poll that lets the mapping
+/// complete) and copies the contents out: the one read-back sequence of the
+/// synthesizer ([`read_buffer`]) and the mesh renderer, which word their errors
+/// differently: `cancelled` when the mapping is dropped, `"{failed}: {e}"` when it fails.
+pub(crate) fn read_mapped(
+    buffer: &wgpu::Buffer,
+    wait: impl FnOnce() -> Result<()>,
+    cancelled: &str,
+    failed: &str,
+) -> Result<Vec<u8>> {
     let (tx, rx) = std::sync::mpsc::channel();
     buffer.map_async(wgpu::MapMode::Read, .., move |r| {
         let _ = tx.send(r);
     });
-    wait(ctx)?;
+    wait()?;
     rx.recv()
-        .map_err(|_| Error::Gpu("buffer mapping was cancelled".into()))?
-        .map_err(|e| Error::Gpu(format!("reading back results: {e}")))?;
+        .map_err(|_| Error::Gpu(cancelled.into()))?
+        .map_err(|e| Error::Gpu(format!("{failed}: {e}")))?;
     let data = buffer
         .get_mapped_range(..)
-        .map_err(|e| Error::Gpu(format!("reading back results: {e}")))?
+        .map_err(|e| Error::Gpu(format!("{failed}: {e}")))?
         .to_vec();
     buffer.unmap();
     Ok(data)

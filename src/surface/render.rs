@@ -37,6 +37,7 @@ use glam::{Mat4, Vec3, Vec4};
 use super::mesh::Mesh;
 use crate::error::{Error, Result};
 use crate::gpu::shaders::render::MESH as MESH_SHADER;
+use crate::gpu::synth::read_mapped;
 use crate::gpu::GpuContext;
 
 /// Direction towards the key light in view space (x right, y up, z towards the viewer);
@@ -972,7 +973,12 @@ fn render_cameras(
         readback
     })?;
 
-    let bytes = read_buffer(ctx, &readback)?;
+    let bytes = read_mapped(
+        &readback,
+        || ctx.wait_idle(),
+        "render: buffer mapping was cancelled",
+        "render: reading back the image",
+    )?;
     ctx.take_uncaptured_errors()?;
     let mut out = Vec::with_capacity(width as usize * size as usize * 4);
     for y in 0..size as usize {
@@ -981,24 +987,6 @@ fn render_cameras(
     }
     image::RgbaImage::from_raw(width, size, out)
         .ok_or_else(|| Error::Gpu("render: read-back has the wrong size".into()))
-}
-
-/// Map `buffer`, wait for the GPU and copy its contents out.
-fn read_buffer(ctx: &GpuContext, buffer: &wgpu::Buffer) -> Result<Vec<u8>> {
-    let (tx, rx) = std::sync::mpsc::channel();
-    buffer.map_async(wgpu::MapMode::Read, .., move |r| {
-        let _ = tx.send(r);
-    });
-    ctx.wait_idle()?;
-    rx.recv()
-        .map_err(|_| Error::Gpu("render: buffer mapping was cancelled".into()))?
-        .map_err(|e| Error::Gpu(format!("render: reading back the image: {e}")))?;
-    let data = buffer
-        .get_mapped_range(..)
-        .map_err(|e| Error::Gpu(format!("render: reading back the image: {e}")))?
-        .to_vec();
-    buffer.unmap();
-    Ok(data)
 }
 
 #[cfg(test)]
