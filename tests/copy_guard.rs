@@ -317,3 +317,43 @@ fn a_session_applies_its_budget_to_large_exemplars_only() {
         .build()
         .is_err());
 }
+
+/// Which outputs the guard's probe covers: windows inside the origin's probe square and
+/// periodic outputs; anything reaching beyond is not measured (`output_within_probe`).
+#[test]
+fn outputs_within_the_probe_window() {
+    let n = COPY_PROBE_SIZE;
+    let p = |origin: [i32; 2], w: u32, h: u32| SynthParams {
+        width: w,
+        height: h,
+        origin,
+        ..SynthParams::default()
+    };
+    for (params, within) in [
+        (p([0, 0], n, n), true),
+        (p([0, 0], 64, 32), true),
+        (p([n as i32 - 64, 100], 64, 64), true),
+        (p([0, 0], n + 1, n), false),
+        (p([0, 0], 2 * n, 2 * n), false),
+        (p([-1, 0], 64, 64), false),
+        (p([n as i32 - 63, 0], 64, 64), false),
+        (p([n as i32, n as i32], 64, 64), false),
+        (
+            SynthParams {
+                tileable_output: true,
+                ..p([0, 0], 2 * n, 2 * n)
+            },
+            true,
+        ),
+    ] {
+        assert_eq!(
+            GpuSynthesizer::output_within_probe(&params),
+            within,
+            "{:?} {}x{} periodic {}",
+            params.origin,
+            params.width,
+            params.height,
+            params.tileable_output
+        );
+    }
+}

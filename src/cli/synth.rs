@@ -7,6 +7,7 @@ use std::time::{Duration, Instant};
 use clap::Args;
 
 use texsyn::analysis::{Analysis, AnalysisOptions, Exemplar, MAX_K};
+use texsyn::gpu::copy_guard::COPY_PROBE_SIZE;
 use texsyn::gpu::synth::GpuSynthesizer;
 use texsyn::gpu::GpuContext;
 use texsyn::passes::SynthParams;
@@ -61,7 +62,9 @@ pub struct SynthArgs {
     /// (0..=1; 0 = the default schedule, no probe). Lower texture energy for most
     /// exemplars; costs one synthesis per probe, plus the result's when it is another
     /// window or every probe copies too much. Isometric synthesis only (ignored with
-    /// --field or --randomness)
+    /// --field or --randomness). The budget holds within the probe window only: beyond
+    /// it (larger outputs, other windows, tiles) a stiller schedule can copy more
+    /// (measured up to 66% at 1024x1024); use 0 there for a copy bounded at any size
     #[arg(long, value_name = "F", default_value_t = texsyn::gpu::copy_guard::DEFAULT_COPY_BUDGET,
           allow_hyphen_values = true, value_parser = parse_copy_budget)]
     pub copy_budget: f32,
@@ -642,7 +645,18 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
         .choose_schedule(&ctx, &params, args.copy_budget)
         .map_err(cli_hint(args.tileable_output))?;
     let guard_time = (!choice.probes.is_empty()).then(|| t.elapsed());
-    let guard_line = (!choice.probes.is_empty()).then(|| choice.describe(args.copy_budget));
+    let mut guard_line = (!choice.probes.is_empty()).then(|| choice.describe(args.copy_budget));
+    if choice.params.extra_still_levels > 0 && !GpuSynthesizer::output_within_probe(&params) {
+        // The guard bounds the copies of its probe window only (copy_guard docs).
+        if let Some(line) = guard_line.as_mut() {
+            line.push_str(&format!(
+                "\nnote: this output extends beyond the {COPY_PROBE_SIZE}x{COPY_PROBE_SIZE} window at \
+                 the origin that the copy guard measured; there the stiller schedule can copy more \
+                 than the budget (measured up to 66% of an exemplar at 1024x1024). For a bounded \
+                 copy at any size, use --copy-budget 0"
+            ));
+        }
+    }
     let params = choice.params;
     let mut probe_result = choice.result;
     let mut reused_probe = false;
