@@ -304,10 +304,10 @@ impl SessionBuilder {
     /// The copy guard's budget, 0..=1 (default [`DEFAULT_COPY_BUDGET`], 0 = no guard,
     /// the default schedule always): the largest verbatim copy, as a fraction of the
     /// exemplar, that a stiller schedule may make (see [`crate::gpu::copy_guard`]).
-    /// It is measured on the 512x512 window at the origin and holds there only: larger
-    /// outputs and other windows can copy more
+    /// It is measured on the window at the origin of the output's size (at least
+    /// 512x512) and holds there: windows elsewhere can copy more
     /// ([`GpuSynthesizer::output_within_probe`](crate::GpuSynthesizer::output_within_probe));
-    /// 0 bounds the copies at any size.
+    /// 0 bounds the copies at any size and place.
     pub fn copy_budget(mut self, budget: f32) -> Self {
         self.copy_budget = budget;
         self

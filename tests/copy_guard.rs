@@ -318,8 +318,10 @@ fn a_session_applies_its_budget_to_large_exemplars_only() {
         .is_err());
 }
 
-/// Which outputs the guard's probe covers: windows inside the origin's probe square and
-/// periodic outputs; anything reaching beyond is not measured (`output_within_probe`).
+/// Which outputs the guard's probe covers: windows inside the probe at the origin (of
+/// the output's size, at least the probe size) and periodic outputs; anything reaching
+/// beyond is not measured (`output_within_probe`). Outputs over `MAX_PROBE_SIZE` a side
+/// are not probed at all (`probed_size`).
 #[test]
 fn outputs_within_the_probe_window() {
     let n = COPY_PROBE_SIZE;
@@ -333,8 +335,10 @@ fn outputs_within_the_probe_window() {
         (p([0, 0], n, n), true),
         (p([0, 0], 64, 32), true),
         (p([n as i32 - 64, 100], 64, 64), true),
-        (p([0, 0], n + 1, n), false),
-        (p([0, 0], 2 * n, 2 * n), false),
+        (p([0, 0], n + 1, n), true),
+        (p([0, 0], 2 * n, 2 * n), true),
+        (p([1, 0], n + 1, n), false),
+        (p([0, -1], 2 * n, 2 * n), false),
         (p([-1, 0], 64, 64), false),
         (p([n as i32 - 63, 0], 64, 64), false),
         (p([n as i32, n as i32], 64, 64), false),
@@ -356,4 +360,41 @@ fn outputs_within_the_probe_window() {
             params.tileable_output
         );
     }
+    // The probe: at the origin, the output's size but at least the probe size.
+    let probe = GpuSynthesizer::probe_params(&p([700, -300], 64, 1000));
+    assert_eq!((probe.origin, probe.width, probe.height), ([0, 0], n, 1000));
+    let m = texsyn::gpu::copy_guard::MAX_PROBE_SIZE;
+    assert!(GpuSynthesizer::probed_size(&p([0, 0], m, m)));
+    assert!(!GpuSynthesizer::probed_size(&p([0, 0], m + 1, 8)));
+    assert!(GpuSynthesizer::probed_size(&SynthParams {
+        tileable_output: true,
+        ..p([0, 0], m + 1, 8)
+    }));
+}
+
+/// An output larger than the probe size is its own probe: measured at its size (a
+/// stiller schedule's copies grow with the extent), and the result when it passes.
+#[test]
+fn a_larger_output_is_its_own_probe() {
+    let ctx = GpuContext::headless().expect("a device");
+    let syn = GpuSynthesizer::new(&ctx, Arc::new(gravel_analysis(GUARD_MIN_SIDE))).unwrap();
+    let a = syn.analysis();
+    let output = SynthParams {
+        width: COPY_PROBE_SIZE + 96,
+        height: COPY_PROBE_SIZE + 8,
+        seed: 3,
+        ..Default::default()
+    };
+    let choice = syn.choose_schedule(&ctx, &output, 1.0).unwrap();
+    assert_eq!(choice.params.extra_still_levels, GUARD_TIERS[0]);
+    let r = choice.result.expect("the output is the probe");
+    assert_eq!((r.width, r.height), (output.width, output.height));
+    let copy = verbatim_stats(&r.coords, r.width, r.height, a.width, a.height, a.tileable)
+        .unwrap()
+        .largest_region_fraction;
+    assert_eq!(choice.probes[0].copy, copy);
+    assert_eq!(choice.probes[0].spacing, 1);
+    let again = syn.synthesize_to_host(&ctx, &choice.params).unwrap();
+    assert_eq!(again.coords, r.coords);
+    ctx.take_uncaptured_errors().expect("no wgpu errors");
 }

@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 use clap::Args;
 
 use texsyn::analysis::{Analysis, AnalysisOptions, Exemplar, MAX_K};
-use texsyn::gpu::copy_guard::COPY_PROBE_SIZE;
+use texsyn::gpu::copy_guard::MAX_PROBE_SIZE;
 use texsyn::gpu::synth::GpuSynthesizer;
 use texsyn::gpu::GpuContext;
 use texsyn::passes::SynthParams;
@@ -56,15 +56,16 @@ pub struct SynthArgs {
     #[arg(long, value_name = "R|R0,R1,...", value_parser = parse_randomness)]
     pub randomness: Option<Randomness>,
 
-    /// Copy guard, for exemplars of 176 px and more: first synthesize probes (the 512x512
-    /// window at the origin, with these options) with two more still levels, then one,
+    /// Copy guard, for exemplars of 176 px and more: first synthesize probes (the window
+    /// at the origin of the output's size, at least 512x512, with these options; outputs
+    /// over 2048 px a side keep the default schedule) with two more still levels, then one,
     /// and keep the first whose largest verbatim copy is at most F of the exemplar's area
     /// (0..=1; 0 = the default schedule, no probe). Lower texture energy for most
     /// exemplars; costs one synthesis per probe, plus the result's when it is another
     /// window or every probe copies too much. Isometric synthesis only (ignored with
-    /// --field or --randomness). The budget holds within the probe window only: beyond
-    /// it (larger outputs, other windows, tiles) a stiller schedule can copy more
-    /// (measured up to 66% at 1024x1024); use 0 there for a copy bounded at any size
+    /// --field or --randomness). Windows away from the origin are not measured: tiles of
+    /// a larger texture can copy more between them; use 0 for a copy bounded at any size
+    /// and place
     #[arg(long, value_name = "F", default_value_t = texsyn::gpu::copy_guard::DEFAULT_COPY_BUDGET,
           allow_hyphen_values = true, value_parser = parse_copy_budget)]
     pub copy_budget: f32,
@@ -649,13 +650,25 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
     if choice.params.extra_still_levels > 0 && !GpuSynthesizer::output_within_probe(&params) {
         // The guard bounds the copies of its probe window only (copy_guard docs).
         if let Some(line) = guard_line.as_mut() {
+            let probe = GpuSynthesizer::probe_params(&params);
             line.push_str(&format!(
-                "\nnote: this output extends beyond the {COPY_PROBE_SIZE}x{COPY_PROBE_SIZE} window at \
-                 the origin that the copy guard measured; there the stiller schedule can copy more \
-                 than the budget (measured up to 66% of an exemplar at 1024x1024). For a bounded \
-                 copy at any size, use --copy-budget 0"
+                "\nnote: the copy guard measured the {}x{} window at the origin, not this \
+                 one; tiles of a larger texture can copy more than the budget between them. \
+                 For a copy bounded at any size and place, use --copy-budget 0",
+                probe.width, probe.height
             ));
         }
+    }
+    let ex = synthesizer.analysis();
+    if args.copy_budget > 0.0
+        && !GpuSynthesizer::probed_size(&params)
+        && ex.width.min(ex.height) >= texsyn::gpu::copy_guard::GUARD_MIN_SIDE
+        && params.randomness.is_empty()
+        && !params.anisometric()
+    {
+        guard_line = Some(format!(
+            "jitter schedule: the default (no copy guard for outputs over {MAX_PROBE_SIZE} px a side)"
+        ));
     }
     let params = choice.params;
     let mut probe_result = choice.result;

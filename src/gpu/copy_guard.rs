@@ -26,10 +26,22 @@
 //! half / quarter resolution (medians), 1.06 / 1.03 / 1.03 -> 0.80 / 0.97 / 0.99, the
 //! largest copy at most 0.25 of the exemplar where the guard applies.
 //!
-//! The decision must not depend on the output window, or windows of the unbounded
-//! texture would not fit together: the probe is always the window at the origin of
-//! [`COPY_PROBE_SIZE`] pixels (a periodic output is its own probe), with the caller's
-//! other parameters. When the output is that window, the probe is the result.
+//! The decision must not depend on the output's origin, or windows of the unbounded
+//! texture would not fit together: the probe is always the window at the origin, with
+//! the caller's other parameters, of the output's size but at least [`COPY_PROBE_SIZE`]
+//! pixels a side (a periodic output is its own probe). When the output is that window,
+//! the probe is the result.
+//!
+//! The probe has the output's size because a stiller schedule's largest verbatim copy
+//! grows with the extent: 1024x1024 outputs whose 512x512 window at the origin copied
+//! 17-25% of the exemplar copied 27-66% (forty-third session: seven exemplars of 192-512
+//! px x seeds 1-2, eight of 14 over 30%; 2048x2048 up to 76%), while the default schedule
+//! stayed at 6-17% (at most 20% at 2048x2048). So an output larger than the probe of a
+//! smaller one may keep a less still schedule than it, and the two then differ where they
+//! overlap; outputs of one size always agree. Outputs over [`MAX_PROBE_SIZE`] a side keep
+//! the default schedule. Other windows of the output's size are not measured: tiles of a
+//! large texture can copy more than the budget between them; `--copy-budget 0` (the
+//! default schedule) bounds the copies at any size.
 
 use super::context::GpuContext;
 use super::synth::{GpuSynthesizer, ProbeRun};
@@ -41,8 +53,14 @@ use crate::passes::{SynthParams, Synthesis};
 /// windows and seeds the probe does not see).
 pub const DEFAULT_COPY_BUDGET: f32 = 0.25;
 
-/// Side of the probe window (pixels), at the origin of the unbounded texture.
+/// Smallest side of the probe window (pixels), at the origin of the unbounded texture;
+/// larger outputs probe their own size.
 pub const COPY_PROBE_SIZE: u32 = 512;
+
+/// Largest output side the guard probes: a larger output keeps the default schedule
+/// (a probe of its size would cost as much as the output, and the default schedule's
+/// copies stay at about a fifth of the exemplar at any size).
+pub const MAX_PROBE_SIZE: u32 = 2048;
 
 /// The guard applies to exemplars whose smaller side is at least this. Under it the
 /// default schedule already matches `texture-synthesis`'s texture energy (0.95 of it,
@@ -125,8 +143,9 @@ impl GpuSynthesizer {
     /// exemplar verbatim becomes `extra_still_levels`, else it stays 0. Nothing is probed
     /// (the parameters come back as they are) when `budget` is 0, for exemplars under
     /// [`GUARD_MIN_SIDE`], when `params` gives its own `randomness` or
-    /// `extra_still_levels`, and for anisometric and atlas synthesis (whose patches the
-    /// field shapes; not measured). Costs one synthesis of the probe window per tier
+    /// `extra_still_levels`, for anisometric and atlas synthesis (whose patches the
+    /// field shapes; not measured), and for outputs over [`MAX_PROBE_SIZE`] a side
+    /// ([`Self::probed_size`]). Costs one synthesis of the probe window per tier
     /// tried (less for a probe given up early, see [`EARLY_CHECKS`]), plus the result's
     /// own when it is another window or every probe failed.
     pub fn choose_schedule(
@@ -153,6 +172,7 @@ impl GpuSynthesizer {
             || !params.randomness.is_empty()
             || params.extra_still_levels != 0
             || params.anisometric()
+            || !Self::probed_size(params)
         {
             return Ok(choice);
         }
@@ -186,14 +206,16 @@ impl GpuSynthesizer {
         Ok(choice)
     }
 
-    /// Whether the output of `params` lies within the probe window (or is a periodic
-    /// output, its own probe), where the guard's measurement bounds its copies.
-    ///
-    /// Beyond it a stiller schedule is not measured, and its copies grow with the extent:
-    /// 1024x1024 outputs whose 512x512 probe copied 17-25% copied 27-66% of the exemplar
-    /// (seven exemplars of 192-512 px x seeds 1-2, eight of 14 over 30%), while the
-    /// default schedule stayed at 6-17%. For large outputs or tiles with a bounded copy,
-    /// use a budget of 0 (the default schedule).
+    /// Whether the guard probes outputs of this size: a side of at most
+    /// [`MAX_PROBE_SIZE`], or a periodic output (its own probe).
+    pub fn probed_size(params: &SynthParams) -> bool {
+        params.tileable_output || params.width.max(params.height) <= MAX_PROBE_SIZE
+    }
+
+    /// Whether the output of `params` lies within its probe window (or is a periodic
+    /// output, its own probe), where the guard's measurement bounds its copies. Other
+    /// windows of the same size are not measured (module docs); for tiles with a
+    /// bounded copy, use a budget of 0 (the default schedule).
     pub fn output_within_probe(params: &SynthParams) -> bool {
         let probe = Self::probe_params(params);
         params.tileable_output
@@ -205,15 +227,15 @@ impl GpuSynthesizer {
                     <= probe.origin[1] as i64 + probe.height as i64)
     }
 
-    /// The probe window for `params`: the origin's [`COPY_PROBE_SIZE`] square, or the
-    /// output itself when it is periodic.
+    /// The probe window for `params`: at the origin, of the output's size but at least
+    /// [`COPY_PROBE_SIZE`] a side, or the output itself when it is periodic.
     pub fn probe_params(params: &SynthParams) -> SynthParams {
         if params.tileable_output {
             return params.clone();
         }
         SynthParams {
-            width: COPY_PROBE_SIZE,
-            height: COPY_PROBE_SIZE,
+            width: params.width.max(COPY_PROBE_SIZE),
+            height: params.height.max(COPY_PROBE_SIZE),
             origin: [0, 0],
             ..params.clone()
         }
