@@ -144,8 +144,9 @@ impl GpuSynthesizer {
     /// (the parameters come back as they are) when `budget` is 0, for exemplars under
     /// [`GUARD_MIN_SIDE`], when `params` gives its own `randomness` or
     /// `extra_still_levels`, for anisometric and atlas synthesis (whose patches the
-    /// field shapes; not measured), and for outputs over [`MAX_PROBE_SIZE`] a side
-    /// ([`Self::probed_size`]). Costs one synthesis of the probe window per tier
+    /// field shapes; not measured), for outputs over [`MAX_PROBE_SIZE`] a side
+    /// ([`Self::probed_size`]), and where the probe does not fit the device in one
+    /// piece ([`GpuSynthesizer::fits`]). Costs one synthesis of the probe window per tier
     /// tried (less for a probe given up early, see [`EARLY_CHECKS`]), plus the result's
     /// own when it is another window or every probe failed.
     pub fn choose_schedule(
@@ -173,6 +174,9 @@ impl GpuSynthesizer {
             || params.extra_still_levels != 0
             || params.anisometric()
             || !Self::probed_size(params)
+            // A probe the device cannot synthesize in one piece (the output is then
+            // assembled from windows): not probed.
+            || !self.fits(ctx, &Self::probe_params(params))
         {
             return Ok(choice);
         }
