@@ -394,7 +394,17 @@ fn a_larger_output_is_its_own_probe() {
         .largest_region_fraction;
     assert_eq!(choice.probes[0].copy, copy);
     assert_eq!(choice.probes[0].spacing, 1);
+    assert!(choice.unprobed.is_none());
     let again = syn.synthesize_to_host(&ctx, &choice.params).unwrap();
     assert_eq!(again.coords, r.coords);
+    // Over the largest probed side: the default schedule, unprobed, and it says why.
+    let huge = SynthParams {
+        width: texsyn::gpu::copy_guard::MAX_PROBE_SIZE + 1,
+        height: 16,
+        ..output.clone()
+    };
+    let c = syn.choose_schedule(&ctx, &huge, 1.0).unwrap();
+    assert_eq!((&c.params, c.probes.is_empty()), (&huge, true));
+    assert!(c.describe(1.0).contains("over 2048 px"), "{}", c.describe(1.0));
     ctx.take_uncaptured_errors().expect("no wgpu errors");
 }

@@ -7,7 +7,6 @@ use std::time::{Duration, Instant};
 use clap::Args;
 
 use texsyn::analysis::{Analysis, AnalysisOptions, Exemplar, MAX_K};
-use texsyn::gpu::copy_guard::MAX_PROBE_SIZE;
 use texsyn::gpu::synth::GpuSynthesizer;
 use texsyn::gpu::GpuContext;
 use texsyn::passes::SynthParams;
@@ -646,7 +645,8 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
         .choose_schedule(&ctx, &params, args.copy_budget)
         .map_err(cli_hint(args.tileable_output))?;
     let guard_time = (!choice.probes.is_empty()).then(|| t.elapsed());
-    let mut guard_line = (!choice.probes.is_empty()).then(|| choice.describe(args.copy_budget));
+    let mut guard_line = (!choice.probes.is_empty() || choice.unprobed.is_some())
+        .then(|| choice.describe(args.copy_budget));
     if choice.params.extra_still_levels > 0 && !GpuSynthesizer::output_within_probe(&params) {
         // The guard bounds the copies of its probe window only (copy_guard docs).
         if let Some(line) = guard_line.as_mut() {
@@ -658,17 +658,6 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
                 probe.width, probe.height
             ));
         }
-    }
-    let ex = synthesizer.analysis();
-    if args.copy_budget > 0.0
-        && !GpuSynthesizer::probed_size(&params)
-        && ex.width.min(ex.height) >= texsyn::gpu::copy_guard::GUARD_MIN_SIDE
-        && params.randomness.is_empty()
-        && !params.anisometric()
-    {
-        guard_line = Some(format!(
-            "jitter schedule: the default (no copy guard for outputs over {MAX_PROBE_SIZE} px a side)"
-        ));
     }
     let params = choice.params;
     let mut probe_result = choice.result;

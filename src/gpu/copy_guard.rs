@@ -103,6 +103,10 @@ pub struct ScheduleChoice {
     /// The kept probe's synthesis when it is the result (`params` with the probe's
     /// window).
     pub result: Option<Synthesis>,
+    /// Why the guard, which would apply to these parameters, probed nothing: the output
+    /// is over [`MAX_PROBE_SIZE`] a side, or its probe does not fit the device in one
+    /// piece. `None` when it probed, or does not apply at all.
+    pub unprobed: Option<String>,
 }
 
 impl ScheduleChoice {
@@ -127,7 +131,10 @@ impl ScheduleChoice {
             n => format!("{n} more still levels"),
         };
         if self.probes.is_empty() {
-            return format!("jitter schedule: {what} (no copy guard)");
+            return match &self.unprobed {
+                Some(why) => format!("jitter schedule: {what} (no copy guard: {why})"),
+                None => format!("jitter schedule: {what} (no copy guard)"),
+            };
         }
         format!(
             "jitter schedule: {what} (copy guard, budget {:.0}% of the exemplar; probes copied {})",
@@ -166,6 +173,7 @@ impl GpuSynthesizer {
             params: params.clone(),
             probes: Vec::new(),
             result: None,
+            unprobed: None,
         };
         let a = self.analysis();
         if budget == 0.0
@@ -173,11 +181,17 @@ impl GpuSynthesizer {
             || !params.randomness.is_empty()
             || params.extra_still_levels != 0
             || params.anisometric()
-            || !Self::probed_size(params)
-            // A probe the device cannot synthesize in one piece (the output is then
-            // assembled from windows): not probed.
-            || !self.fits(ctx, &Self::probe_params(params))
         {
+            return Ok(choice);
+        }
+        if !Self::probed_size(params) {
+            choice.unprobed = Some(format!("the output is over {MAX_PROBE_SIZE} px a side"));
+            return Ok(choice);
+        }
+        // A probe the device cannot synthesize in one piece (the output is then
+        // assembled from windows).
+        if !self.fits(ctx, &Self::probe_params(params)) {
+            choice.unprobed = Some("its probe would not fit the device in one piece".into());
             return Ok(choice);
         }
         for extra in GUARD_TIERS {
