@@ -405,6 +405,10 @@ fn a_larger_output_is_its_own_probe() {
     };
     let c = syn.choose_schedule(&ctx, &huge, 1.0).unwrap();
     assert_eq!((&c.params, c.probes.is_empty()), (&huge, true));
-    assert!(c.describe(1.0).contains("over 2048 px"), "{}", c.describe(1.0));
+    assert!(
+        c.describe(1.0).contains("over 2048 px"),
+        "{}",
+        c.describe(1.0)
+    );
     ctx.take_uncaptured_errors().expect("no wgpu errors");
 }
