@@ -154,6 +154,24 @@ fn prediction_read(k: vec2<i32>) -> Vec8 {
     return bilinear_et(k);
 }
 
+// With COHERENT_SKIP (advection frames): whether all 8 neighbours continue the pixel's
+// patch, S[q + d] = S[q] + h J d within COHERENT_TOL per axis. The correction would
+// keep such a pixel (its own coordinate predicts its neighbourhood), so it is left
+// as it is, at the cost of reading its neighbours.
+const COHERENT_TOL: i32 = 64;
+
+fn coherent_interior(n: Neighbours, j: vec4<i32>) -> bool {
+    var ok = true;
+    for (var dy = -1; dy <= 1; dy++) {
+        for (var dx = -1; dx <= 1; dx++) {
+            let d = vec2<i32>(dx, dy);
+            let e = coord_delta(neighbour(n, d) - n.zz - scaled_jd(params.spacing, j, d));
+            ok = ok && all(abs(e) <= vec2<i32>(COHERENT_TOL));
+        }
+    }
+    return ok;
+}
+
 @compute @workgroup_size(8, 8, 1)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     opaque = i32(gid.z);
@@ -173,6 +191,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let j = jac_at(self_index);
     let h = params.step;
     let n = load_neighbours(q);
+    if (COHERENT_SKIP && coherent_interior(n, j)) {
+        return;
+    }
 
     let p0 = prediction_sum(n, j, vec2<i32>(1, 1));
     let p1 = prediction_sum(n, j, vec2<i32>(1, -1));

@@ -60,6 +60,9 @@ struct Params {
     // neighbours count as unchanged since its class's previous subpass (0: none does).
     stamp: u32,
     clean_before: u32,
+    // Anisometric correction (advection frames): leave pixels inside a coherent patch.
+    coherent_skip: u32,
+    pad0: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: Params;
@@ -101,6 +104,8 @@ override NEAREST: bool = false;
 override SEAM_BLEND: bool = false;
 // params.k: the similarity-set size (1..=8), so that the candidate loop unrolls.
 override K: i32 = 2;
+// params.coherent_skip (see correct_aniso.wgsl).
+override COHERENT_SKIP: bool = false;
 // Synthesized exemplar coordinates of every level's region, concatenated.
 @group(0) @binding(1) var<storage, read_write> coords: array<vec2<i32>>;
 // Quantized transformed exemplar Et_l: 8 x i16 per pixel, all levels.

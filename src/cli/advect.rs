@@ -105,6 +105,12 @@ pub struct AdvectArgs {
     #[arg(long)]
     pub exact_reads: bool,
 
+    /// Also correct the pixels inside coherent patches (all 8 neighbours continue the
+    /// pixel's patch within a quarter pixel), which the frames otherwise leave as they
+    /// are (slower, about the same figures)
+    #[arg(long)]
+    pub correct_coherent: bool,
+
     /// Also time every dispatch of each frame (each submitted on its own) and print a
     /// table per level and pass: medians over the frames
     #[arg(long)]
@@ -320,6 +326,7 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
         nearest: !args.bilinear,
         interpolate_sets: args.interpolate_sets,
         quarter_reads: !args.exact_reads,
+        skip_coherent: !args.correct_coherent,
     };
     options.check()?;
     // The temporal figures printed at the end use 5x5 windows: refuse what they cannot

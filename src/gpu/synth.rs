@@ -264,13 +264,13 @@ type JacobianKey = (
 
 /// The switches compiled into a pass pipeline as WGSL overrides (`shaders/shared/
 /// common.wgsl`): a pipeline per combination in use, so that CPU drivers do not run the
-/// branches a dispatch never takes. Bits 0-7: the flags of [`Self::FLAGS`]; bits 8-10:
+/// branches a dispatch never takes. Bits 0-10: the flags of [`Self::FLAGS`]; bits 11-13:
 /// the similarity-set size k - 1.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) struct Variant(u16);
 
 impl Variant {
-    const FLAGS: [&'static str; 10] = [
+    const FLAGS: [&'static str; 11] = [
         "TILEABLE",
         "FULL_DISTANCE",
         "KSET_INTERP",
@@ -281,11 +281,12 @@ impl Variant {
         "IDENTITY_J",
         "NEAREST",
         "SEAM_BLEND",
+        "COHERENT_SKIP",
     ];
-    const K_SHIFT: u32 = 10;
+    const K_SHIFT: u32 = 11;
     /// The bits only the correction passes read: FULL_DISTANCE, KSET_INTERP, QUARTER,
-    /// FINE_TABLES and k.
-    const CORRECTION_ONLY: u16 = 0b1_1100_0110_0110;
+    /// FINE_TABLES, COHERENT_SKIP and k.
+    const CORRECTION_ONLY: u16 = 0b11_1100_0110_0110;
     /// The bits only the gathers read: NEAREST and SEAM_BLEND.
     const GATHER_ONLY: u16 = 0b11 << 8;
     const FINE_TABLES: u16 = 1 << 6;
@@ -305,6 +306,7 @@ impl Variant {
             false,
             p.nearest != 0,
             p.seam_blend != 0,
+            p.coherent_skip != 0,
         ];
         let k = (p.k.clamp(1, crate::analysis::MAX_K as i32) - 1) as u16;
         Self(
@@ -360,7 +362,7 @@ impl Variant {
 struct LazyPipeline {
     shader: &'static ShaderSource,
     module: std::sync::OnceLock<wgpu::ShaderModule>,
-    /// The variants in use (a few of the 2^13 possible): each its own cell, so that
+    /// The variants in use (a few of the 2^14 possible): each its own cell, so that
     /// two threads build different variants at once and the same one only once.
     cells: Mutex<std::collections::HashMap<u16, Arc<std::sync::OnceLock<wgpu::ComputePipeline>>>>,
 }

@@ -113,6 +113,11 @@ pub struct PassParams {
     /// `SynthPlan::schedule_with`.
     pub stamp: u32,
     pub clean_before: u32,
+    /// Anisometric correction (advection frames): 1 leaves a pixel whose 8 neighbours
+    /// all continue its patch within a quarter pixel (see `correct_aniso.rs`).
+    pub coherent_skip: u32,
+    /// Keeps the size a multiple of 8 bytes, as WGSL rounds the uniform struct.
+    pub pad0: u32,
 }
 
 /// Dynamic uniform offsets must be multiples of this (the WebGPU default limit).

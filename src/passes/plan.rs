@@ -559,6 +559,8 @@ impl SynthPlan {
             quarter: 0,
             stamp: 0,
             clean_before: 0,
+            coherent_skip: 0,
+            pad0: 0,
         }
     }
 }
@@ -795,6 +797,7 @@ impl SynthPlan {
                             let mut d = *d;
                             d.params.kset_interp = options.interpolate_sets as u32;
                             d.params.quarter = options.quarter_reads as u32;
+                            d.params.coherent_skip = options.skip_coherent as u32;
                             // With one pass, the finest level's similarity sets follow
                             // `sets_every` over the frames: of a frame's two subpasses
                             // one scores them, and the two swap every other frame, so
