@@ -510,6 +510,16 @@ fn bad_velocities_and_time_steps() {
             ..AdvectOptions::default()
         })
         .is_err());
+    for sets_every in [0, 17] {
+        let e = adv
+            .set_options(AdvectOptions {
+                sets_every,
+                ..AdvectOptions::default()
+            })
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("sets every"), "{e}");
+    }
     ctx().take_uncaptured_errors().unwrap();
 }
 
@@ -859,20 +869,25 @@ fn surface_advection_gpu_matches_cpu() {
     assert_eq!(ok.len(), 64 * 64);
 }
 
-/// With one correction pass per frame, the finest level's similarity sets follow
-/// `sets_every` over the frames: each frame runs one of its two finest subpasses with
-/// them (k) and one without (k = 1), and every pixel class has them at every other
-/// correction (every correction with `sets_every` 1).
+/// With one correction pass per frame, the finest level's similarity sets follow the
+/// frames' `sets_every` (`AdvectOptions`, default 2) over the frames: each frame runs one
+/// of its two finest subpasses with them (k) and one without (k = 1), and every pixel
+/// class has them at every other correction (every correction with `sets_every` 1).
+/// The synthesis parameter of the same name (frame 0's) does not steer the frames.
 #[test]
 fn advection_frames_take_turns_with_the_similarity_sets() {
     let ex = common::gravel_crop(32);
     let a = analyze(&ex, &AnalysisOptions::default(), |_| {}).unwrap();
-    let o = AdvectOptions::default();
+    assert_eq!(AdvectOptions::default().sets_every, 2);
     for sets_every in [1u32, 2] {
+        let o = AdvectOptions {
+            sets_every,
+            ..Default::default()
+        };
         let params = Advection::synthesis_params(&SynthParams {
             width: 40,
             height: 24,
-            sets_every,
+            sets_every: 3 - sets_every,
             ..Default::default()
         });
         let plan = SynthPlan::new(&a, &params).unwrap();

@@ -1187,6 +1187,21 @@ fn review_findings_fail_cleanly() {
         start.elapsed().as_secs_f64() < 5.0,
         "checked after the analysis"
     );
+    fails(
+        &dir,
+        &[
+            "advect",
+            GRAVEL,
+            "--flow",
+            "vortex",
+            "--sets-every",
+            "0",
+            "-o",
+            "frames",
+        ],
+        1,
+        "sets every",
+    );
     // PIDs never exceed 2^22 on Linux: this staging folder belongs to no live process.
     std::fs::create_dir(dir.path(".frames.partial-4194305")).unwrap();
     ok(

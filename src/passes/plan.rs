@@ -736,6 +736,7 @@ impl SynthPlan {
         frame_plan.params.passes = passes;
         frame_plan.params.second_finest_passes = Some(passes);
         frame_plan.params.finest_passes = passes;
+        frame_plan.params.sets_every = options.sets_every.clamp(1, 16);
         // No skipping (see `schedule_inner`): the advection moves the coordinates.
         let full = frame_plan.schedule_inner(analysis, false, false);
         let mut out = Vec::new();
@@ -799,14 +800,15 @@ impl SynthPlan {
                             d.params.quarter = options.quarter_reads as u32;
                             d.params.coherent_skip = options.skip_coherent as u32;
                             // With one pass, the finest level's similarity sets follow
-                            // `sets_every` over the frames: of a frame's two subpasses
+                            // the frames' `sets_every` over the frames (with more, the
+                            // passes do): of a frame's two subpasses
                             // one scores them, and the two swap every other frame, so
                             // each pixel has them at every `sets_every`-th correction
                             // and every frame costs the same.
                             if passes == 1
                                 && finest
                                 && !(subpass / 2 + frame / 2)
-                                    .is_multiple_of(self.params.sets_every as u64)
+                                    .is_multiple_of(frame_plan.params.sets_every as u64)
                             {
                                 d.params.k = 1;
                             }
