@@ -155,9 +155,10 @@ fn prediction_read(k: vec2<i32>) -> Vec8 {
 }
 
 // With COHERENT_SKIP (advection frames): whether all 8 neighbours continue the pixel's
-// patch, S[q + d] = S[q] + h J d within COHERENT_TOL per axis. The correction would
-// keep such a pixel (its own coordinate predicts its neighbourhood), so it is left
-// as it is, at the cost of reading its neighbours.
+// patch, S[q + d] = S[q] + h J d within COHERENT_TOL (a quarter pixel) per axis. The
+// correction would keep such a pixel or nudge it within the pixel (its own coordinate
+// predicts its neighbourhood), so it is left as it is: its loads are saved (CPU drivers
+// still run its SIMD group's arithmetic, masked).
 const COHERENT_TOL: i32 = 64;
 
 fn coherent_interior(n: Neighbours, j: vec4<i32>) -> bool {

@@ -30,9 +30,11 @@
 //!
 //! `p.coherent_skip` (advection frames) leaves a pixel whose 8 neighbours all continue
 //! its patch (`S[q + d] = S[q] + h J d` within [`COHERENT_TOL`] per axis): its own
-//! coordinate predicts its neighbourhood, so the correction would keep it but for
-//! rounding ties. Under a turning flow about a fifth of the finest level's correction
-//! time goes (see [`crate::passes::advect::AdvectOptions::skip_coherent`]).
+//! coordinate predicts its neighbourhood, so the correction would keep it or nudge it
+//! within the pixel. Under a turning flow about a seventh of the finest level's
+//! correction time goes: the skipped pixels' loads, not their SIMD group's arithmetic,
+//! which CPU drivers run with the lanes masked (see
+//! [`crate::passes::advect::AdvectOptions::skip_coherent`]).
 
 use super::common::{
     bilinear_taps, coord_delta, fit_coord, is_valid_fx, nearest_texel, phi_inv, quarter_texel,
