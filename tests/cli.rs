@@ -1224,6 +1224,24 @@ fn review_findings_fail_cleanly() {
         assert!(!dir.path(".frames.partial-4194305").exists());
     }
     assert!(dir.path("frames/frame_00002.png").exists());
+    // From 16 frames on, the cost of the later half is reported too (a turning flow makes
+    // frames dearer as it breaks the patches up); not for fewer frames.
+    for (frames, late) in [("16", true), ("15", false)] {
+        let out = texsyn(
+            &dir,
+            &[
+                "advect", GRAVEL, "--flow", "vortex", "--frames", frames, "--size", "16", "-o",
+                "late",
+            ],
+        );
+        let stderr = text(&out.stderr);
+        assert!(out.status.success(), "{stderr}");
+        assert_eq!(
+            stderr.contains("the last 8 frames alone:"),
+            late,
+            "{frames} frames:\n{stderr}"
+        );
+    }
 
     // A flow that moves everything out of view has no warped difference (null), not 0.
     let json = ok(

@@ -542,6 +542,12 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
     if let Some(s) = staging.take() {
         s.commit()?;
     }
+    // A turning flow breaks the texture's patches up over the first tens of frames, and
+    // the correction then costs more: the later half of a long run shows the lasting cost.
+    let late = (costs.len() >= 16).then(|| {
+        let n = costs.len() - costs.len() / 2;
+        (n, median(&mut costs[costs.len() / 2..].to_vec()))
+    });
     let frame_time = median(&mut costs);
     let report = figures.finish()?;
     ui.info(format!(
@@ -566,6 +572,13 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
         100.0 * frame_time.as_secs_f64() / frame0_time.as_secs_f64(),
         fmt_duration(frame0_time)
     ));
+    if let Some((n, late_time)) = late {
+        ui.info(format!(
+            "  the last {n} frames alone: {} = {:.0}% of a whole synthesis",
+            fmt_duration(late_time),
+            100.0 * late_time.as_secs_f64() / full_time.as_secs_f64(),
+        ));
+    }
     if args.per_pass {
         print_pass_table(ui, &passes, "per frame, one submission per dispatch")?;
     }
