@@ -227,6 +227,14 @@ fn frames_leave_coherent_patches() {
     let p = plan.pass_params(&a, finest);
     let (base, size) = (p.coord_base as usize, p.size);
     let n = (size[0] * size[1]) as usize;
+    // Every correction of a default frame carries the switch.
+    let schedule = plan.advect_schedule(&a, &on, 0);
+    let corrections: Vec<_> = schedule
+        .iter()
+        .filter(|d| d.kind == texsyn::passes::plan::PassKind::CorrectAniso)
+        .collect();
+    assert!(!corrections.is_empty());
+    assert!(corrections.iter().all(|d| d.params.coherent_skip == 1));
     let (mut skipped, mut differ, mut far) = (0usize, 0usize, 0usize);
     let frames = 12u64;
     for t in 0..frames {
@@ -271,7 +279,10 @@ fn frames_leave_coherent_patches() {
     );
     // The correction would only nudge some of them within the pixel.
     let far = far as f64 / total;
-    assert!(differ < 0.05, "{differ} of the pixels differ");
+    assert!(
+        differ > 0.0 && differ < 0.05,
+        "{differ} of the pixels differ"
+    );
     assert!(
         far < 0.002,
         "{far} of the pixels differ by more than a pixel"
