@@ -7,6 +7,9 @@
 // the common drift by moving whole coordinates (patch seams included, so a uniform flow
 // of whole pixels translates the texture exactly), the rest in place through J, which
 // keeps neighbouring pixels coherent (a per-pixel k tears the texture where it changes).
+// In frames k is the change of the drift's whole level pixels (params.drift, the centre
+// velocity summed in whole finest pixels by drift.wgsl), so that each level moves by its
+// share of the drift.
 #include "shared/common.wgsl"
 
 // The velocity at the finest-level pixel under this level's pixel p (absolute),
@@ -29,9 +32,16 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = params.coord_base + u32(q.y * params.size.x + q.x);
     let vq = velocity_at(params.origin + q);
     let unit = 1024 << params.steps;
-    let ws = params.window_size;
-    let vc = velocity[u32((ws.y / 2) * ws.x + ws.x / 2)];
-    let k = (vc + vec2<i32>(unit >> 1u)) >> vec2<u32>(10u + params.steps);
+    var k: vec2<i32>;
+    if (params.drift != 0u) {
+        // The change of the drift's whole level pixels (see advect.rs, whole_shift).
+        let s = vec2<u32>(params.steps);
+        k = (coords[params.drift + 1u] >> s) - (coords[params.drift] >> s);
+    } else {
+        let ws = params.window_size;
+        let vc = velocity[u32((ws.y / 2) * ws.x + ws.x / 2)];
+        k = (vc + vec2<i32>(unit >> 1u)) >> vec2<u32>(10u + params.steps);
+    }
     // Clamped to 128 pixels per component (only reached on coarse levels at near the
     // largest speeds): keeps J V within i32.
     let v = clamp(vq - k * unit, vec2<i32>(-(128 << 10u)), vec2<i32>(128 << 10u));

@@ -13,5 +13,13 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let i = params.coord_base + u32(q.y * params.size.x + q.x);
-    coords[i] = upsample_at(params.origin + q, i);
+    if (params.drift == 0u) {
+        coords[i] = upsample_at(params.origin + q, i);
+        return;
+    }
+    // Advection frames, the finest level: upsampled as the pixel at q - f, plus h J f,
+    // with f the drift's phase (see upsample_aniso.rs, run).
+    let f = coords[params.drift + 1u] & vec2<i32>(1);
+    let c = upsample_at(params.origin + q - f, i);
+    coords[i] = fit_coord(c + scaled_jd(params.spacing, jac_at(i), f));
 }

@@ -101,10 +101,10 @@ fn advection_frames_gpu_match_cpu() {
     let mut adv = Advection::new(ctx(), synth.clone(), &params, opts).unwrap();
     let plan: SynthPlan = adv.plan().clone();
     let jac = plan.jacobians();
-    let mut cpu = vec![[0i32; 2]; (plan.coord_count + plan.flag_count()) as usize];
+    let mut cpu = vec![[0i32; 2]; plan.coord_buffer_len() as usize];
     run_cpu_frame(
         &a,
-        &plan.advect_first_schedule(&a, opts.nearest),
+        &plan.advect_first_schedule(&a, opts.nearest, opts.upsample_finest),
         &mut cpu,
         &jac,
         &[],
@@ -128,17 +128,29 @@ fn advection_frames_gpu_match_cpu() {
             cy: 0.4,
             omega: -0.04,
         },
+        Flow::Vortex {
+            cx: 0.4,
+            cy: 0.5,
+            omega: 0.03,
+        },
+        Flow::Source {
+            cx: 0.6,
+            cy: 0.3,
+            strength: -2.0,
+        },
     ];
     for (f, flow) in flows.iter().enumerate() {
-        // Both ways of scoring the similarity sets, in turn; quarter-pixel reads (from
-        // the finest level's supersampled tables) but in frame 3; in frame 4 the
-        // projected distance at every level, so that the coarser advected levels read
-        // quarter pixels without tables (interpolating in the shader).
-        // Frame 2 also corrects the pixels inside coherent patches.
+        // Both ways of scoring the similarity sets, in turn; quarter-pixel reads but in
+        // frame 3; from frame 4 on the projected distance at every level, so that the
+        // most corrected level reads quarter pixels from its supersampled tables (the
+        // second-finest; in frame 5, which advects the finest level too, the finest) and
+        // the coarser advected levels read them without tables (interpolating in the
+        // shader). Frame 2 also corrects the pixels inside coherent patches.
         let o = AdvectOptions {
             interpolate_sets: f % 2 == 1,
             quarter_reads: f != 2,
             skip_coherent: f != 1,
+            upsample_finest: f != 4,
             ..opts
         };
         adv.set_options(o).unwrap();
@@ -196,9 +208,10 @@ fn advection_frames_gpu_match_cpu() {
 }
 
 /// The frames leave the pixels inside coherent patches, which the correction would keep
-/// or only nudge within the pixel: under a turning flow a third of the finest level's
-/// pixels are skipped (0.33 measured), and a frame with the skip differs from one without
-/// it in 3% of them, by more than a pixel in 0.01%.
+/// or only nudge within the pixel: under a turning flow a sixth of the most corrected
+/// level's pixels are skipped (0.16 measured; the second-finest level, whose patches are
+/// fewer pixels across than the finest's), and a frame with the skip differs from one
+/// without it in 0.5% of them, by more than a pixel in 0.01%.
 #[test]
 fn frames_leave_coherent_patches() {
     let (a, synth, _) = setup(64);
@@ -223,8 +236,9 @@ fn frames_leave_coherent_patches() {
     let mut adv = Advection::new(ctx(), synth, &params, on).unwrap();
     let plan = adv.plan().clone();
     let jac = plan.jacobians();
-    let finest = plan.levels.len() - 1;
-    let p = plan.pass_params(&a, finest);
+    // The level the frames correct most: the second-finest (the finest is upsampled).
+    let top = plan.levels.len() - 2;
+    let p = plan.pass_params(&a, top);
     let (base, size) = (p.coord_base as usize, p.size);
     let n = (size[0] * size[1]) as usize;
     // Every correction of a default frame carries the switch.
@@ -239,8 +253,8 @@ fn frames_leave_coherent_patches() {
     let frames = 12u64;
     for t in 0..frames {
         let start = adv.read_coords(ctx()).unwrap();
-        // The share of the finest level's pixels a correction would skip, counted on the
-        // state the frame starts from.
+        // The share of the level's pixels a correction would skip, counted on the state
+        // the frame starts from.
         skipped += (0..size[1])
             .flat_map(|y| (0..size[0]).map(move |x| [x, y]))
             .filter(|&px| texsyn::passes::correct_aniso::coherent_interior(&p, &start, &jac, px))
@@ -274,7 +288,7 @@ fn frames_leave_coherent_patches() {
         far as f64 / total
     );
     assert!(
-        skipped > 0.2,
+        skipped > 0.1,
         "only {skipped} of the pixels are coherent interiors"
     );
     // The correction would only nudge some of them within the pixel.
@@ -298,6 +312,15 @@ fn plain_diff(a: &[u8], b: &[u8]) -> f64 {
         / (a.len() / 4) as f64
 }
 
+/// A uniform flow of whole pixels moves the coordinates of every level exactly, patch
+/// seams included (with the finest level upsampled, through the drift's phase): without
+/// corrections nearly every pixel equals the previous frame's shifted by the flow (the
+/// first frames re-upsample a few pixels that continue no patch). The corrections then
+/// retouch some: with the finest level advected, 0.3-6% of its pixels per frame; with it
+/// upsampled, more (11-21% at (2, -1) pixels per frame, where the odd vertical speed
+/// leaves the second-finest level half a pixel in place on every other frame, so its
+/// corrections read the exemplar at other texels; an even speed retouches about none).
+/// Either way the frames differ far less than unwarped ones.
 #[test]
 fn uniform_flow_of_whole_pixels_translates_exactly() {
     let (_a, synth, _) = setup(64);
@@ -307,33 +330,55 @@ fn uniform_flow_of_whole_pixels_translates_exactly() {
         height: h,
         ..SynthParams::default()
     };
-    let mut adv = Advection::new(ctx(), synth, &params, AdvectOptions::default()).unwrap();
     let v = Flow::Uniform { vx: 2.0, vy: -1.0 }
         .sample(w, h, 0.0)
         .unwrap();
-    let mut prev = adv.read_rgba8(ctx()).unwrap();
-    for _ in 0..5 {
-        adv.step(ctx(), &v, 1.0).unwrap();
-        let cur = adv.read_rgba8(ctx()).unwrap();
-        let warped = warped_diff(&prev, &cur, w, h, |_, _| (2.0, -1.0), 6);
-        let still = warped_diff(&prev, &cur, w, h, |_, _| (0.0, 0.0), 6);
-        // The coordinates move exactly; the correction pass then retouches some pixels.
-        let (mut same, mut total) = (0, 0);
-        for y in 6..h - 6 {
-            for x in 6..w - 6 {
-                let i = ((y * w + x) * 4) as usize;
-                let j = (((y + 1) * w + x - 2) * 4) as usize;
-                same += (cur[i] == prev[j]) as usize;
-                total += 1;
+    for upsample_finest in [true, false] {
+        for passes in [0, 1] {
+            let o = AdvectOptions {
+                upsample_finest,
+                passes,
+                ..Default::default()
+            };
+            let mut adv = Advection::new(ctx(), synth.clone(), &params, o).unwrap();
+            let mut prev = adv.read_rgba8(ctx()).unwrap();
+            for _ in 0..5 {
+                adv.step(ctx(), &v, 1.0).unwrap();
+                let cur = adv.read_rgba8(ctx()).unwrap();
+                let warped = warped_diff(&prev, &cur, w, h, |_, _| (2.0, -1.0), 6);
+                let still = warped_diff(&prev, &cur, w, h, |_, _| (0.0, 0.0), 6);
+                let (mut same, mut total) = (0, 0);
+                for y in 6..h - 6 {
+                    for x in 6..w - 6 {
+                        let i = ((y * w + x) * 4) as usize;
+                        let j = (((y + 1) * w + x - 2) * 4) as usize;
+                        same += (cur[i] == prev[j]) as usize;
+                        total += 1;
+                    }
+                }
+                let same = same as f64 / total as f64;
+                eprintln!(
+                    "upsampled finest {upsample_finest}, passes {passes}: warped {warped:.3}, \
+                     unwarped {still:.3}, identical {same:.3}"
+                );
+                // Measured over frames 1-5: 0.95-0.999 without corrections (the first
+                // frame re-upsamples a few pixels that continue no patch), 0.94-0.997
+                // with the finest level advected, 0.79-0.89 with it upsampled.
+                // The warped difference against the unwarped: 0.6-5.6% and 0.1-4%,
+                // and 8.5-18% with the finest level upsampled and corrections.
+                let (want, ratio) = match (passes, upsample_finest) {
+                    (0, _) => (0.93, 0.1),
+                    (_, false) => (0.9, 0.1),
+                    _ => (0.75, 0.25),
+                };
+                assert!(
+                    warped < ratio * still && same > want,
+                    "upsampled finest {upsample_finest}, passes {passes}: warped {warped}, \
+                     unwarped {still}, identical {same}"
+                );
+                prev = cur;
             }
         }
-        let same = same as f64 / total as f64;
-        eprintln!("warped {warped:.3}, unwarped {still:.3}, identical {same:.3}");
-        assert!(
-            warped < 0.1 * still && same > 0.85,
-            "warped {warped}, unwarped {still}, identical {same}"
-        );
-        prev = cur;
     }
 }
 
@@ -440,10 +485,13 @@ fn vortex_keeps_the_texture_for_300_frames() {
 /// Grass under a vortex: pixels that continue no patch must be re-synthesized, or they
 /// spread and the correction settles them on the exemplar's flat content (leaves,
 /// shadows), blurring the texture. Before they were flagged this kept 0.79 of frame 0's
-/// high-frequency energy after 300 frames; now 0.97.
+/// high-frequency energy after 300 frames (advecting the finest level); then 0.97. Since
+/// the finest level is upsampled, frame 300 keeps 0.88 of frame 0's, which is sharper
+/// than the exemplar: 0.99 of the exemplar's (the issue's blur measure).
 #[test]
 fn vortex_does_not_blur_grass() {
-    let (_, synth) = asset("grass");
+    let (ex, synth) = asset("grass");
+    let exemplar_sharpness = texsyn::quality::high_frequency_energy(&ex_image(&ex));
     let (w, h) = (96u32, 96u32);
     let params = SynthParams {
         width: w,
@@ -466,9 +514,10 @@ fn vortex_does_not_blur_grass() {
         adv.step(ctx(), &v, 1.0).unwrap();
     }
     let sharp300 = sharpness(&adv);
+    eprintln!("sharpness {sharp0} -> {sharp300}, exemplar {exemplar_sharpness}");
     assert!(
-        sharp300 > 0.9 * sharp0,
-        "blurred: sharpness {sharp0} -> {sharp300}"
+        sharp300 > 0.9 * exemplar_sharpness && sharp300 > 0.8 * sharp0,
+        "blurred: sharpness {sharp0} -> {sharp300}, exemplar {exemplar_sharpness}"
     );
 }
 
@@ -838,10 +887,10 @@ fn surface_advection_gpu_matches_cpu() {
     let plan = adv.plan().clone();
     let jac = plan.jacobians();
     let surface = plan.surface_words().0;
-    let mut cpu = vec![[0i32; 2]; (plan.coord_count + plan.flag_count()) as usize];
+    let mut cpu = vec![[0i32; 2]; plan.coord_buffer_len() as usize];
     run_cpu_frame(
         &a,
-        &plan.advect_first_schedule(&a, o.nearest),
+        &plan.advect_first_schedule(&a, o.nearest, o.upsample_finest),
         &mut cpu,
         &jac,
         &surface,
@@ -880,102 +929,133 @@ fn surface_advection_gpu_matches_cpu() {
     assert_eq!(ok.len(), 64 * 64);
 }
 
-/// With one correction pass per frame, the finest level's similarity sets follow the
-/// frames' `sets_every` (`AdvectOptions`, default 2) over the frames: each frame runs one
-/// of its two finest subpasses with them (k) and one without (k = 1), and every pixel
-/// class has them at every other correction (every correction with `sets_every` 1).
-/// The synthesis parameter of the same name (frame 0's) does not steer the frames.
+/// With one correction pass per frame, the most corrected level's similarity sets follow
+/// the frames' `sets_every` (`AdvectOptions`, default 2) over the frames, at the same
+/// cost every frame: with the finest level upsampled (default), the second-finest runs
+/// its four subpasses each frame, two with the sets (k) and two without (k = 1); with the
+/// finest advected, the finest runs two of its four, one with them. Every pixel class has
+/// them at every other correction (every correction with `sets_every` 1). The synthesis
+/// parameter of the same name (frame 0's) does not steer the frames.
 #[test]
 fn advection_frames_take_turns_with_the_similarity_sets() {
     let ex = common::gravel_crop(32);
     let a = analyze(&ex, &AnalysisOptions::default(), |_| {}).unwrap();
     assert_eq!(AdvectOptions::default().sets_every, 2);
-    for sets_every in [1u32, 2] {
-        let o = AdvectOptions {
-            sets_every,
-            ..Default::default()
-        };
-        let params = Advection::synthesis_params(&SynthParams {
-            width: 40,
-            height: 24,
-            sets_every: 3 - sets_every,
-            ..Default::default()
-        });
-        let plan = SynthPlan::new(&a, &params).unwrap();
-        let finest = plan.levels.len() - 1;
-        let mut per_class: std::collections::HashMap<[i32; 2], Vec<i32>> = Default::default();
-        for frame in 0..8u64 {
-            let ks: Vec<(i32, [i32; 2])> = plan
-                .advect_schedule(&a, &o, frame)
-                .iter()
-                .filter(|d| {
-                    d.level == finest && d.kind == texsyn::passes::plan::PassKind::CorrectAniso
-                })
-                .map(|d| (d.params.k, d.params.parity))
-                .collect();
-            assert_eq!(ks.len(), 2, "frame {frame}");
-            let with_sets = ks.iter().filter(|(k, _)| *k == a.k as i32).count();
-            assert_eq!(
-                with_sets,
-                if sets_every == 1 { 2 } else { 1 },
-                "frame {frame}"
-            );
-            for (k, parity) in ks {
-                per_class.entry(parity).or_default().push(k);
+    assert!(AdvectOptions::default().upsample_finest);
+    for upsample_finest in [true, false] {
+        for sets_every in [1u32, 2] {
+            let o = AdvectOptions {
+                sets_every,
+                upsample_finest,
+                ..Default::default()
+            };
+            let params = Advection::synthesis_params(&SynthParams {
+                width: 40,
+                height: 24,
+                sets_every: 3 - sets_every,
+                ..Default::default()
+            });
+            let plan = SynthPlan::new(&a, &params).unwrap();
+            let n = plan.levels.len();
+            let top = if upsample_finest { n - 2 } else { n - 1 };
+            let per_frame = if upsample_finest { 4 } else { 2 };
+            let mut per_class: std::collections::HashMap<[i32; 2], Vec<i32>> = Default::default();
+            for frame in 0..8u64 {
+                let schedule = plan.advect_schedule(&a, &o, frame);
+                // Nothing corrects the finest level when it is upsampled.
+                assert_eq!(
+                    schedule.iter().any(|d| d.level == n - 1
+                        && d.kind == texsyn::passes::plan::PassKind::CorrectAniso),
+                    !upsample_finest
+                );
+                let ks: Vec<(i32, [i32; 2])> = schedule
+                    .iter()
+                    .filter(|d| {
+                        d.level == top && d.kind == texsyn::passes::plan::PassKind::CorrectAniso
+                    })
+                    .map(|d| (d.params.k, d.params.parity))
+                    .collect();
+                assert_eq!(ks.len(), per_frame, "frame {frame}");
+                let with_sets = ks.iter().filter(|(k, _)| *k == a.k as i32).count();
+                assert_eq!(
+                    with_sets,
+                    per_frame / sets_every as usize,
+                    "frame {frame}, upsampled finest {upsample_finest}"
+                );
+                for (k, parity) in ks {
+                    per_class.entry(parity).or_default().push(k);
+                }
             }
-        }
-        assert_eq!(per_class.len(), 4);
-        for (parity, ks) in per_class {
-            let want: Vec<i32> = (0..ks.len())
-                .map(|i| {
-                    if sets_every == 1 || i % 2 == 0 {
-                        a.k as i32
-                    } else {
-                        1
-                    }
-                })
-                .collect();
-            // Each class starts with or without them, then alternates.
-            let flipped: Vec<i32> = want
-                .iter()
-                .map(|&k| {
-                    if sets_every == 1 {
-                        k
-                    } else {
-                        a.k as i32 + 1 - k
-                    }
-                })
-                .collect();
-            assert!(ks == want || ks == flipped, "class {parity:?}: {ks:?}");
+            assert_eq!(per_class.len(), 4);
+            for (parity, ks) in per_class {
+                let want: Vec<i32> = (0..ks.len())
+                    .map(|i| {
+                        if sets_every == 1 || i % 2 == 0 {
+                            a.k as i32
+                        } else {
+                            1
+                        }
+                    })
+                    .collect();
+                // Each class starts with or without them, then alternates.
+                let flipped: Vec<i32> = want
+                    .iter()
+                    .map(|&k| {
+                        if sets_every == 1 {
+                            k
+                        } else {
+                            a.k as i32 + 1 - k
+                        }
+                    })
+                    .collect();
+                assert!(ks == want || ks == flipped, "class {parity:?}: {ks:?}");
+            }
         }
     }
 }
 
-/// Every correction of an advection frame's finest level reads the finest level's
-/// quarter-pixel tables: the plan must recognize it although the coarse levels store no
-/// tables (their offsets skip them). Until the thirty-first session the GPU path took
-/// `(levels - 1) w h` for the finest level's offset, which stopped matching when level
-/// 0 lost its tables, and the frames silently interpolated four texels per read (the
-/// same bytes, about 1.4x the frame time at 512x512).
+/// The corrections of an advection frame's most corrected level read that level's
+/// quarter-pixel tables, where it uses the projected distance: the finest level when it
+/// is advected (with the default distances, which score the coarser levels with the full
+/// distance), the second-finest when the finest is upsampled (with the projected distance
+/// everywhere; by default that level uses the full distance, which reads no tables). The
+/// plan must recognize the level although the coarse levels store no tables (their
+/// offsets skip them): until the thirty-first session the GPU path took `(levels - 1) w
+/// h` for the finest level's offset, which stopped matching when level 0 lost its tables,
+/// and the frames silently interpolated four texels per read (the same bytes, about 1.4x
+/// the frame time at 512x512).
 #[test]
 fn advection_frames_read_the_finest_quarter_tables() {
+    use texsyn::passes::plan::{quarter_tables_level, PassKind};
     for size in [32u32, 64] {
         let ex = common::gravel_crop(size);
         let a = analyze(&ex, &AnalysisOptions::default(), |_| {}).unwrap();
         let finest = a.levels.len() - 1;
         let o = AdvectOptions::default();
         assert!(o.quarter_reads, "the default frames read quarter pixels");
-        let params = Advection::synthesis_params(&SynthParams {
+        let params = SynthParams {
             width: 48,
             height: 40,
             ..Default::default()
-        });
-        let plan = SynthPlan::new(&a, &params).unwrap();
+        };
+        let plan = SynthPlan::new(&a, &Advection::synthesis_params(&params)).unwrap();
+        let projected = SynthPlan::new(
+            &a,
+            &Advection::synthesis_params(&SynthParams {
+                distance: texsyn::DistanceMode::Projected,
+                ..params.clone()
+            }),
+        )
+        .unwrap();
+        let advected = AdvectOptions {
+            upsample_finest: false,
+            ..o
+        };
         for frame in 0..4u64 {
-            let s = plan.advect_schedule(&a, &o, frame);
+            let s = plan.advect_schedule(&a, &advected, frame);
             let corrections: Vec<_> = s
                 .iter()
-                .filter(|d| d.kind == texsyn::passes::plan::PassKind::CorrectAniso)
+                .filter(|d| d.kind == PassKind::CorrectAniso)
                 .collect();
             assert!(corrections.iter().any(|d| d.level == finest));
             for d in corrections {
@@ -986,15 +1066,32 @@ fn advection_frames_read_the_finest_quarter_tables() {
                     d.level
                 );
             }
+            assert_eq!(quarter_tables_level(&s, &a), Some(finest));
+            let s = projected.advect_schedule(&a, &o, frame);
+            assert_eq!(quarter_tables_level(&s, &a), Some(finest - 1));
+            assert_eq!(
+                quarter_tables_level(&plan.advect_schedule(&a, &o, frame), &a),
+                None
+            );
         }
         // The exact reads interpolate at the position itself: no tables.
         let exact = AdvectOptions {
             quarter_reads: false,
             ..o
         };
-        assert!(plan
-            .advect_schedule(&a, &exact, 0)
-            .iter()
-            .all(|d| !d.reads_quarter_tables(&a)));
+        for p in [&plan, &projected] {
+            for opts in [
+                exact,
+                AdvectOptions {
+                    upsample_finest: false,
+                    ..exact
+                },
+            ] {
+                assert!(p
+                    .advect_schedule(&a, &opts, 0)
+                    .iter()
+                    .all(|d| !d.reads_quarter_tables(&a)));
+            }
+        }
     }
 }

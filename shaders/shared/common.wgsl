@@ -62,7 +62,7 @@ struct Params {
     clean_before: u32,
     // Anisometric correction (advection frames): leave pixels inside a coherent patch.
     coherent_skip: u32,
-    pad0: u32,
+    drift: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: Params;

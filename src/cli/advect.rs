@@ -59,9 +59,16 @@ pub struct AdvectArgs {
     #[arg(long, value_name = "K", default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
     pub every: u32,
 
-    /// Advected levels (the finest ones)
+    /// Levels each frame works on (the finest ones): the finest is upsampled from the
+    /// others, which are advected (with --advect-finest, all are advected)
     #[arg(long, default_value_t = AdvectOptions::default().levels)]
     pub levels: usize,
+
+    /// Advect and correct the finest level in place too (the paper's scheme) instead of
+    /// upsampling it every frame from the advected second-finest level (about twice the
+    /// cost per frame, and the texture energy rises more)
+    #[arg(long)]
+    pub advect_finest: bool,
 
     /// Distortion threshold |J_obs - J|_F beyond which a pixel is re-synthesized (steps
     /// off by a whole pixel on both sides are patch seams, not distortion, so thresholds
@@ -94,12 +101,12 @@ pub struct AdvectArgs {
     #[arg(long, value_name = "K", default_value_t = 0)]
     pub energy_every: usize,
 
-    /// Score the finest level's similarity-set candidates bilinearly, as the coherent
+    /// Score the most corrected level's similarity-set candidates bilinearly, as the coherent
     /// ones, instead of at their nearest texel (slower, about the same figures)
     #[arg(long)]
     pub interpolate_sets: bool,
 
-    /// Read the finest level's exemplar tables at each position exactly (bilinear at
+    /// Read the most corrected level's exemplar tables at each position exactly (bilinear at
     /// 1/256 pixel) instead of at its nearest quarter pixel from supersampled tables
     /// (slower, about the same figures)
     #[arg(long)]
@@ -112,7 +119,7 @@ pub struct AdvectArgs {
     pub correct_coherent: bool,
 
     /// Score the similarity-set candidates on every N-th correction of a pixel on the
-    /// finest level, 1..=16 (1: every correction, as synthesis does by default; 2 is about
+    /// most corrected level (the second-finest, or the finest with --advect-finest), 1..=16 (1: every correction, as synthesis does by default; 2 is about
     /// an eighth faster per frame for energies 1-2% higher); with --passes above 1, on
     /// every N-th pass of a frame
     #[arg(long, value_name = "N", default_value_t = AdvectOptions::default().sets_every)]
@@ -335,6 +342,7 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
         quarter_reads: !args.exact_reads,
         skip_coherent: !args.correct_coherent,
         sets_every: args.sets_every,
+        upsample_finest: !args.advect_finest,
     };
     options.check()?;
     // The temporal figures printed at the end use 5x5 windows: refuse what they cannot

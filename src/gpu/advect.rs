@@ -65,7 +65,7 @@ impl Advection {
         let plan = SynthPlan::new(synthesizer.analysis(), &params)?;
         // The synthesis of frame 0 has the same limits (texture sides, buffers).
         synthesizer.check_output(ctx, &plan)?;
-        let n_coords = plan.coord_count + plan.flag_count();
+        let n_coords = plan.coord_buffer_len();
         let pixels = params.width as u64 * params.height as u64;
         let max = ctx.limits().max_storage_buffer_binding_size;
         if n_coords * 8 > max {
@@ -93,8 +93,12 @@ impl Advection {
                 mapped_at_creation: false,
             });
             let texture = synthesizer.output_texture(ctx, params.width, params.height);
-            if options.quarter_reads {
-                synthesizer.fine_tables(ctx);
+            // The quarter-pixel tables the frames read, if any (the most corrected
+            // level's, with the projected distance), built now rather than in frame 1.
+            let analysis = synthesizer.analysis();
+            let frame = plan.advect_schedule(analysis, &options, 1);
+            if let Some(level) = crate::passes::plan::quarter_tables_level(&frame, analysis) {
+                synthesizer.fine_tables(ctx, level);
             }
             let entry = |binding, ty| wgpu::BindGroupLayoutEntry {
                 binding,
@@ -173,9 +177,11 @@ impl Advection {
             quantize_layout,
             frame: 0,
         };
-        let schedule = this
-            .plan
-            .advect_first_schedule(this.synthesizer.analysis(), this.options.nearest);
+        let schedule = this.plan.advect_first_schedule(
+            this.synthesizer.analysis(),
+            this.options.nearest,
+            this.options.upsample_finest,
+        );
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
         this.record(ctx, &mut encoder, &schedule, true)?;
         ctx.scoped(|| ctx.queue.submit([encoder.finish()]))?;

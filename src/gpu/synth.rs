@@ -182,9 +182,10 @@ pub struct GpuSynthesizer {
     proj: wgpu::Buffer,
     colors: wgpu::Buffer,
     scratch: Mutex<Option<Scratch>>,
-    /// The finest level's quarter-pixel tables, built on first use (`None` if they do
-    /// not fit the device's buffer limits: the shader then interpolates, same numbers).
-    fine: std::sync::OnceLock<Option<FineTables>>,
+    /// Per level, its quarter-pixel tables, built on first use (advection frames read
+    /// those of their most corrected level; `None` if they do not fit the device's
+    /// buffer limits: the shader then interpolates, same numbers).
+    fine: Vec<std::sync::OnceLock<Option<FineTables>>>,
     /// The last rasterized Jacobian field and the regions it covers: a frame loop that
     /// keeps its field and window reuses it instead of rasterizing again.
     /// With the surface buffer of atlas synthesis (a placeholder otherwise).
@@ -193,7 +194,7 @@ pub struct GpuSynthesizer {
     progress: Mutex<Option<LevelProgress>>,
 }
 
-/// The finest analysis level's `Et` and `qe` interpolated at every quarter pixel
+/// An analysis level's `Et` and `qe` interpolated at every quarter pixel
 /// ([`crate::passes::correct_aniso::quarter_table`]), bound in place of the whole tables
 /// for the corrections that read quarter pixels (`PassParams::quarter`): one read of 16
 /// bytes where bilinear interpolation reads four. 16 times the level's tables (8 MiB
@@ -206,10 +207,10 @@ pub(crate) struct FineTables {
 }
 
 impl FineTables {
-    /// Builds the tables for the finest level, or `None` if a table exceeds the
-    /// device's buffer limits.
-    fn build(ctx: &GpuContext, a: &Analysis) -> Option<Self> {
-        let level = a.levels.last().filter(|l| !l.et.is_empty())?;
+    /// Builds the tables for a level, or `None` if it has no tables or a table exceeds
+    /// the device's buffer limits.
+    fn build(ctx: &GpuContext, a: &Analysis, level_index: usize) -> Option<Self> {
+        let level = a.levels.get(level_index).filter(|l| !l.et.is_empty())?;
         let px = a.width as u64 * a.height as u64;
         let bytes = px << (2 * crate::passes::common::QUARTER_BITS) << 4;
         let limits = ctx.limits();
@@ -225,7 +226,7 @@ impl FineTables {
             ex_size: [a.width as i32, a.height as i32],
             tileable: a.tileable as i32,
             quarter: 1,
-            et_base: a.table_base(a.levels.len() - 1) as u32,
+            et_base: a.table_base(level_index) as u32,
             ..Default::default()
         };
         let (et, qe) = std::thread::scope(|s| {
@@ -435,6 +436,7 @@ pub(crate) struct PassPipelines {
     magnify: LazyPipeline,
     fill: LazyPipeline,
     advect: LazyPipeline,
+    drift: LazyPipeline,
     distortion: LazyPipeline,
 }
 
@@ -506,6 +508,7 @@ impl PassPipelines {
             magnify: LazyPipeline::new(&shaders::MAGNIFY),
             fill: LazyPipeline::new(&shaders::FILL),
             advect: LazyPipeline::new(&shaders::ADVECT),
+            drift: LazyPipeline::new(&shaders::DRIFT),
             distortion: LazyPipeline::new(&shaders::DISTORTION),
         }
     }
@@ -522,6 +525,7 @@ impl PassPipelines {
             PassKind::GatherAniso => &self.gather_aniso,
             PassKind::Fill => &self.fill,
             PassKind::Advect => &self.advect,
+            PassKind::Drift => &self.drift,
             PassKind::Distortion => &self.distortion,
         };
         lazy.get(ctx, &self.pipeline_layout, variant.for_kind(kind))
@@ -805,7 +809,9 @@ impl GpuSynthesizer {
                 colors,
                 analysis: analysis.clone(),
                 scratch: Mutex::new(None),
-                fine: std::sync::OnceLock::new(),
+                fine: (0..analysis.levels.len())
+                    .map(|_| std::sync::OnceLock::new())
+                    .collect(),
                 jacobians: Mutex::new(None),
                 progress: Mutex::new(None),
             })
@@ -836,13 +842,14 @@ impl GpuSynthesizer {
         qe.clone().unwrap_or_else(|| self.no_qe.clone())
     }
 
-    /// The finest level's quarter-pixel tables, built and uploaded now if not yet
-    /// (inside the caller's error scope); `None` if they exceed the device's limits.
+    /// A level's quarter-pixel tables, built and uploaded now if not yet (inside the
+    /// caller's error scope); `None` if it has none or they exceed the device's limits.
     /// [`crate::gpu::advect::Advection::new`] calls it so that the first frame does not
     /// pay for them.
-    pub(crate) fn fine_tables(&self, ctx: &GpuContext) -> Option<&FineTables> {
+    pub(crate) fn fine_tables(&self, ctx: &GpuContext, level: usize) -> Option<&FineTables> {
         self.fine
-            .get_or_init(|| FineTables::build(ctx, &self.analysis))
+            .get(level)?
+            .get_or_init(|| FineTables::build(ctx, &self.analysis, level))
             .as_ref()
     }
 
@@ -1061,12 +1068,10 @@ impl GpuSynthesizer {
         // Corrections that read quarter pixels at the finest level read them from its
         // supersampled tables when those fit (a second bind group: the tables replace
         // `et` and `qe`, so no binding is added to the layout).
-        let fine_dispatch = |d: &Dispatch| d.reads_quarter_tables(&self.analysis);
-        let fine = schedule
-            .iter()
-            .any(fine_dispatch)
-            .then(|| self.fine_tables(ctx))
-            .flatten();
+        let fine_level = crate::passes::plan::quarter_tables_level(schedule, &self.analysis);
+        let fine_dispatch =
+            |d: &Dispatch| Some(d.level) == fine_level && d.reads_quarter_tables(&self.analysis);
+        let fine = fine_level.and_then(|l| self.fine_tables(ctx, l));
         let make_bind_group =
             |colors: &wgpu::Buffer,
              target: &wgpu::TextureView,

@@ -116,8 +116,13 @@ pub struct PassParams {
     /// Anisometric correction (advection frames): 1 leaves a pixel whose 8 neighbours
     /// all continue its patch within a quarter pixel (see `correct_aniso.rs`).
     pub coherent_skip: u32,
-    /// Keeps the size a multiple of 8 bytes, as WGSL rounds the uniform struct.
-    pub pad0: u32,
+    /// Advection frames: index in the coordinate buffer of the frames' drift
+    /// ([`crate::passes::plan::SynthPlan::drift_index`]: the whole finest pixels the
+    /// flow's centre has moved since frame 0, before and after this frame), from which
+    /// the advect pass takes each level's whole-pixel shift and the finest level's
+    /// upsampling its phase (see `advect.rs`); 0: none (synthesis). Also keeps the size
+    /// a multiple of 8 bytes, as WGSL rounds the uniform struct.
+    pub drift: u32,
 }
 
 /// Dynamic uniform offsets must be multiples of this (the WebGPU default limit).

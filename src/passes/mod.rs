@@ -129,6 +129,10 @@ pub fn run_cpu_frame(
                 advect::advect(&d.params, coords, jac, velocity);
                 None
             }
+            PassKind::Drift => {
+                advect::drift(&d.params, coords, velocity);
+                None
+            }
             PassKind::Distortion => {
                 advect::distortion(&d.params, coords, jac, surface);
                 None

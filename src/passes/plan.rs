@@ -560,7 +560,7 @@ impl SynthPlan {
             stamp: 0,
             clean_before: 0,
             coherent_skip: 0,
-            pad0: 0,
+            drift: 0,
         }
     }
 }
@@ -629,6 +629,9 @@ pub enum PassKind {
     /// Advection: copy the moved coordinates back, flagging the pixels whose
     /// coordinates the flow distorted too much (for the upsample pass).
     Distortion,
+    /// Advection: add the frame's centre velocity, in whole finest pixels, to the drift
+    /// (one invocation, first in a frame).
+    Drift,
 }
 
 /// One dispatch of the schedule: the GPU and the CPU mirror run the same list.
@@ -662,25 +665,58 @@ impl Dispatch {
             }
             PassKind::Fill => [p.fill_count.min(FILL_ROW), p.fill_count.div_ceil(FILL_ROW)],
             PassKind::Advect | PassKind::Distortion => [p.size[0] as u32, p.size[1] as u32],
+            PassKind::Drift => [1, 1],
         }
     }
 
-    /// Whether this dispatch may read the finest level's quarter-pixel tables
+    /// Whether this dispatch may read a level's quarter-pixel tables
     /// (`crate::gpu::synth`'s fine tables) instead of interpolating `et` and `qe`: an
-    /// anisometric correction of the finest level with the projected distance that reads
-    /// quarter pixels (advection frames). The finest level is recognized by its table
-    /// offset, [`Analysis::table_base`], which skips levels without tables: until the
+    /// anisometric correction with the projected distance that reads quarter pixels
+    /// (advection frames) of a level with tables (recognized by its table offset,
+    /// [`Analysis::table_base`], which skips levels without tables: until the
     /// thirty-first session the GPU path compared it with `(levels - 1) w h`, which
     /// stopped matching when level 0 lost its tables (twenty-fifth session), so the
-    /// frames interpolated four texels per read (the same values, about 1.3x the time).
+    /// frames interpolated four texels per read: the same values, about 1.3x the time).
+    /// A schedule reads the tables of one level, [`quarter_tables_level`]; the others
+    /// interpolate.
     pub fn reads_quarter_tables(&self, analysis: &Analysis) -> bool {
-        let finest = analysis.levels.len().saturating_sub(1);
         self.kind == PassKind::CorrectAniso
             && self.params.quarter != 0
             && self.params.full_distance == 0
-            && self.level == finest
-            && self.params.et_base as usize == analysis.table_base(finest)
+            && self.level < analysis.levels.len()
+            && self.params.et_base as usize == analysis.table_base(self.level)
     }
+}
+
+/// The level whose quarter-pixel tables a schedule reads: the finest level with a
+/// dispatch that [`Dispatch::reads_quarter_tables`] (an advection frame's most
+/// corrected level: the finest, or the second-finest when the finest is upsampled).
+pub fn quarter_tables_level(schedule: &[Dispatch], analysis: &Analysis) -> Option<usize> {
+    schedule
+        .iter()
+        .filter(|d| d.reads_quarter_tables(analysis))
+        .map(|d| d.level)
+        .max()
+}
+
+/// A level's dispatches of `schedule` but its corrections (and the fills after them):
+/// the upsampling, any jitter, and the fills of an atlas's gutters (the finest level of
+/// an advection frame that upsamples it, [`SynthPlan::advect_schedule`]). No gather.
+fn finest_without_corrections(schedule: &[Dispatch], level: usize) -> Vec<Dispatch> {
+    let mut out = Vec::new();
+    let mut after_correction = false;
+    for d in schedule.iter().filter(|d| d.level == level) {
+        match d.kind {
+            PassKind::CorrectAniso | PassKind::Correct => after_correction = true,
+            PassKind::Gather | PassKind::GatherAniso => {}
+            PassKind::Fill if after_correction => after_correction = false,
+            _ => {
+                after_correction = false;
+                out.push(*d);
+            }
+        }
+    }
+    out
 }
 
 /// Correction subpass order (absolute parities).
@@ -695,9 +731,17 @@ impl SynthPlan {
     }
 
     /// Entries of a GPU coordinate buffer for this plan: the coordinates, then the flag
-    /// region ([`Self::flag_base`], [`Self::flag_count`]).
+    /// region ([`Self::flag_base`], [`Self::flag_count`]), then the two entries of the
+    /// advection frames' drift ([`Self::drift_index`]).
     pub fn coord_buffer_len(&self) -> u64 {
-        self.coord_count + self.flag_count()
+        self.coord_count + self.flag_count() + 2
+    }
+
+    /// Where an advection keeps its drift: the whole finest pixels the flow's centre
+    /// has moved since frame 0 (the sum of its velocity rounded frame by frame), before
+    /// and after the current frame (`PassParams::drift`; zero at frame 0).
+    pub fn drift_index(&self) -> u32 {
+        (self.coord_count + self.flag_count()) as u32
     }
 
     /// Entries of the flag region (the largest level).
@@ -709,14 +753,20 @@ impl SynthPlan {
             .unwrap_or(0)
     }
 
-    /// The dispatches of one advection frame (paper section 7): for each of the
-    /// `levels` finest levels, coarse to fine, advect the coordinates in place, flag the
-    /// pixels distorted beyond `c` (|J_obs - J|_F, Jacobian units), upsample only those
-    /// from the coarser level, then correct with `passes` passes as synthesis does (with
-    /// `passes == 1`, half of the finest level's subpasses and a quarter of the coarser
-    /// advected levels', the rest in the next frames); the gather ends it. The coarser
-    /// levels keep the first frame's coordinates. Needs an anisometric plan (continuous
+    /// The dispatches of one advection frame (paper section 7), on the `levels` finest
+    /// levels, coarse to fine. Each advected level: advect the coordinates in place, flag
+    /// the pixels distorted beyond `c` (|J_obs - J|_F, Jacobian units), upsample only
+    /// those from the coarser level, then correct with `passes` passes as synthesis does.
+    /// With [`AdvectOptions::upsample_finest`] (the default) the finest level is not
+    /// advected: it is upsampled from the advected second-finest level, which each frame
+    /// corrects with its `passes` whole passes, as a synthesis makes its finest level by
+    /// default. Otherwise the finest level is advected too, and with `passes == 1` each
+    /// frame runs half of its subpasses. The coarser advected levels run a quarter of
+    /// theirs (the rest in the next frames); the coarser levels keep the first frame's
+    /// coordinates. The gather ends the frame. Needs an anisometric plan (continuous
     /// coordinates).
+    ///
+    /// [`AdvectOptions::upsample_finest`]: super::advect::AdvectOptions::upsample_finest
     pub fn advect_schedule(
         &self,
         analysis: &Analysis,
@@ -730,6 +780,9 @@ impl SynthPlan {
             options.nearest,
         );
         let n = self.levels.len();
+        let upsample_finest = options.upsample_finest && n >= 2;
+        // The finest level the frames advect and correct.
+        let top = if upsample_finest { n - 2 } else { n - 1 };
         let first = n - levels.clamp(1, n);
         // The synthesis schedule with `passes` correction passes at every level.
         let mut frame_plan = self.clone();
@@ -739,12 +792,21 @@ impl SynthPlan {
         frame_plan.params.sets_every = options.sets_every.clamp(1, 16);
         // No skipping (see `schedule_inner`): the advection moves the coordinates.
         let full = frame_plan.schedule_inner(analysis, false, false);
-        let mut out = Vec::new();
-        for level in first..n {
+        let drift = self.drift_index();
+        let mut out = vec![Dispatch {
+            kind: PassKind::Drift,
+            level: n - 1,
+            params: PassParams {
+                drift,
+                ..self.pass_params(analysis, n - 1)
+            },
+        }];
+        for level in first.min(top)..=top {
             let base = self.pass_params(analysis, level);
             let adv = PassParams {
                 flag_base: self.flag_base(),
                 distortion_max: super::advect::distortion_max(c, base.spacing),
+                drift,
                 ..base
             };
             out.push(Dispatch {
@@ -774,22 +836,24 @@ impl SynthPlan {
             });
             // The level's fills and corrections, as in synthesis (no jitter: the
             // advected pixels keep their place, the re-upsampled ones are rare). With one
-            // pass, each frame runs half of the finest level's subpasses (every pixel is
-            // corrected every other frame), and every other frame one of a coarser level's
-            // four (every pixel every eighth frame; the two coarser levels take turns, so
-            // every frame costs about the same). Measured (README, 256x256 vortex over 300
-            // frames): a quarter of the coarser levels' subpasses per frame gave the same
-            // figures as half; an eighth raises the energy at frame 300 by 2-5% (gravel,
-            // brick; the marble's veins stay), for a per-frame cost of 48-50% of a
-            // synthesis at 512x512 on lavapipe instead of 53-56%.
+            // pass: the most corrected level runs all its subpasses when the finest is
+            // upsampled, else half of them (every pixel is corrected every other frame);
+            // every other frame one of a coarser level's four runs (every pixel every
+            // eighth frame; the two coarser levels take turns, so every frame costs about
+            // the same). Measured (README, 256x256 vortex over 300 frames): a quarter of
+            // the coarser levels' subpasses per frame gave the same figures as half; an
+            // eighth raises the energy at frame 300 by 2-5% (gravel, brick; the marble's
+            // veins stay), for a per-frame cost of 48-50% of a synthesis at 512x512 on
+            // lavapipe instead of 53-56%.
             let mut subpass = 0u64;
             let mut keep_fill = true;
             for d in full.iter().filter(|d| d.level == level) {
                 match d.kind {
                     PassKind::CorrectAniso => {
-                        let finest = level + 1 == n;
+                        let most = level == top;
                         keep_fill = passes > 1
-                            || if finest {
+                            || (most && upsample_finest)
+                            || if most {
                                 subpass % 2 == (frame + level as u64) % 2
                             } else {
                                 (2 * subpass) % 8 == (frame + level as u64) % 8
@@ -799,17 +863,21 @@ impl SynthPlan {
                             d.params.kset_interp = options.interpolate_sets as u32;
                             d.params.quarter = options.quarter_reads as u32;
                             d.params.coherent_skip = options.skip_coherent as u32;
-                            // With one pass, the finest level's similarity sets follow
-                            // the frames' `sets_every` over the frames (with more, the
-                            // passes do): of a frame's two subpasses
-                            // one scores them, and the two swap every other frame, so
-                            // each pixel has them at every `sets_every`-th correction
-                            // and every frame costs the same.
-                            if passes == 1
-                                && finest
-                                && !(subpass / 2 + frame / 2)
-                                    .is_multiple_of(frame_plan.params.sets_every as u64)
-                            {
+                            // With one pass, the most corrected level's similarity sets
+                            // follow the frames' `sets_every` over the frames (with
+                            // more, the passes do), at the same cost every frame. All
+                            // four subpasses per frame: subpass s scores them on frames
+                            // with (frame + s) a multiple of `sets_every`. Two: of a
+                            // frame's two one scores them, and the two swap every other
+                            // frame. Each pixel has them at every `sets_every`-th
+                            // correction.
+                            let every = frame_plan.params.sets_every as u64;
+                            let sets = if upsample_finest {
+                                (subpass + frame).is_multiple_of(every)
+                            } else {
+                                (subpass / 2 + frame / 2).is_multiple_of(every)
+                            };
+                            if passes == 1 && most && !sets {
                                 d.params.k = 1;
                             }
                             out.push(d);
@@ -820,6 +888,20 @@ impl SynthPlan {
                     _ => {}
                 }
             }
+        }
+        if upsample_finest {
+            // The upsampling follows the drift's phase (see `upsample_aniso.rs`), so that
+            // a uniform flow of whole pixels moves the finest level's patch seams too.
+            out.extend(
+                finest_without_corrections(&full, n - 1)
+                    .into_iter()
+                    .map(|mut d| {
+                        if d.kind == PassKind::UpsampleAniso {
+                            d.params.drift = drift;
+                        }
+                        d
+                    }),
+            );
         }
         if let Some(g) = full.last() {
             out.push(Dispatch {
@@ -834,12 +916,29 @@ impl SynthPlan {
     }
 
     /// The first frame of an advection: the whole synthesis, with the gather every
-    /// later frame uses (`nearest`: the nearest exemplar texel, else bilinear).
-    pub fn advect_first_schedule(&self, analysis: &Analysis, nearest: bool) -> Vec<Dispatch> {
+    /// later frame uses (`nearest`: the nearest exemplar texel, else bilinear); with
+    /// `upsample_finest` (see [`Self::advect_schedule`]) the finest level is left
+    /// uncorrected, as the later frames make it.
+    pub fn advect_first_schedule(
+        &self,
+        analysis: &Analysis,
+        nearest: bool,
+        upsample_finest: bool,
+    ) -> Vec<Dispatch> {
         // Full subpasses: the flow carries the margins into view. No pixel skipped and
         // no stamp written (see `schedule_inner`): the frames keep their own data after
         // the coordinates (`flag_base`).
         let mut s = self.schedule_inner(analysis, false, false);
+        let n = self.levels.len();
+        if upsample_finest && n >= 2 {
+            let gather = s.pop();
+            s.retain(|d| d.level + 1 < n);
+            s.extend(finest_without_corrections(
+                &self.schedule_inner(analysis, false, false),
+                n - 1,
+            ));
+            s.extend(gather);
+        }
         if let Some(g) = s.last_mut() {
             g.params.nearest = nearest as u32;
         }

@@ -10,10 +10,20 @@ pub fn upsample_pixel(
     jac: &[[i32; 4]],
     q: [i32; 2],
 ) -> [i32; 2] {
+    upsample_from(p, coords, jac, q, [p.origin[0] + q[0], p.origin[1] + q[1]])
+}
+
+/// The upsampling of region pixel `q` as if it stood at absolute position `abs`.
+fn upsample_from(
+    p: &PassParams,
+    coords: &[[i32; 2]],
+    jac: &[[i32; 4]],
+    q: [i32; 2],
+    abs: [i32; 2],
+) -> [i32; 2] {
     if p.parent_size[0] == 0 {
         return fit_coord([0, 0], p);
     }
-    let abs = [p.origin[0] + q[0], p.origin[1] + q[1]];
     let odd = [abs[0] & 1, abs[1] & 1];
     let j = jac[p.coord_base as usize + (q[1] * p.size[0] + q[0]) as usize];
     // Prediction from the parent at block offset d: its coordinate plus h J (p - 2 parent).
@@ -58,10 +68,31 @@ pub fn upsample_pixel(
     )
 }
 
+/// With `p.drift` (the finest level in advection frames): the drift's phase, its whole
+/// finest pixels mod 2 per axis; else 0.
+pub fn drift_phase(p: &PassParams, coords: &[[i32; 2]]) -> [i32; 2] {
+    if p.drift == 0 {
+        return [0, 0];
+    }
+    coords[p.drift as usize + 1].map(|a| a & 1)
+}
+
+/// The level's upsampling. With a drift phase `f` (advection frames, the finest level:
+/// the coarser level moves by whole pixels of its own, two finest pixels, so a uniform
+/// flow of an odd number of pixels leaves it half a pixel behind, in place), pixel `p` is
+/// upsampled as the pixel at `p - f`, plus `h J f`: the blocks of 2x2 children, and so
+/// the patch seams, move with the drift, and within a patch the result is the same.
 pub fn run(p: &PassParams, coords: &mut [[i32; 2]], jac: &[[i32; 4]]) {
+    let f = drift_phase(p, coords);
     for y in 0..p.size[1] {
         for x in 0..p.size[0] {
-            let c = upsample_pixel(p, coords, jac, [x, y]);
+            let abs = [p.origin[0] + x - f[0], p.origin[1] + y - f[1]];
+            let mut c = upsample_from(p, coords, jac, [x, y], abs);
+            if f != [0, 0] {
+                let j = jac[p.coord_base as usize + (y * p.size[0] + x) as usize];
+                let o = scaled_jd(p.spacing, j, f);
+                c = fit_coord([c[0] + o[0], c[1] + o[1]], p);
+            }
             coords[p.coord_base as usize + (y * p.size[0] + x) as usize] = c;
         }
     }
