@@ -580,6 +580,22 @@ fn bad_velocities_and_time_steps() {
             .to_string();
         assert!(e.contains("sets every"), "{e}");
     }
+    // One level with the finest upsampled would advect nothing.
+    let e = adv
+        .set_options(AdvectOptions {
+            levels: 1,
+            ..AdvectOptions::default()
+        })
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("at least 2 levels"), "{e}");
+    adv.set_options(AdvectOptions {
+        levels: 1,
+        upsample_finest: false,
+        ..AdvectOptions::default()
+    })
+    .unwrap();
+    adv.step(ctx(), &good, 1.0).unwrap();
     ctx().take_uncaptured_errors().unwrap();
 }
 

@@ -1187,6 +1187,15 @@ fn review_findings_fail_cleanly() {
         start.elapsed().as_secs_f64() < 5.0,
         "checked after the analysis"
     );
+    // One level is only the finest, which is upsampled by default: nothing to advect.
+    fails(
+        &dir,
+        &[
+            "advect", GRAVEL, "--flow", "vortex", "--levels", "1", "-o", "frames",
+        ],
+        1,
+        "--advect-finest",
+    );
     fails(
         &dir,
         &[

@@ -204,16 +204,16 @@ pub struct AdvectOptions {
     /// without correcting it, as a synthesis makes its finest level by default; the
     /// second-finest level is then corrected with whole passes every frame. Off: the
     /// finest level is advected in place and corrected too (the paper's scheme; half of
-    /// its subpasses per frame with one pass). On by default (forty-fifth session): its
-    /// frames cost about half as much and keep the texture better. Measured on the CPU
-    /// mirror (256x256, default vortex, 300 frames, on against off): texture energy at
-    /// frame 300 gravel 0.00475 against 0.00638, brick 0.00115 against 0.00213, grass
-    /// 0.00394 against 0.00468 (one pass of the second-finest level in half its
-    /// subpasses; whole passes lower it further), flow-warped difference 0.0589 against
-    /// 0.0613 (gravel), sharpness 1.15 against 1.24 (frame 0: 1.05). A uniform flow then
-    /// moves patch seams by whole second-finest pixels (two output pixels): the texture
-    /// moves exactly inside its patches, but an odd whole-pixel speed leaves some seams
-    /// a pixel behind.
+    /// its subpasses per frame with one pass), and frame 0 corrects it. On by default
+    /// (forty-fifth session): a 512x512 frame costs a third of a whole synthesis
+    /// instead of about half, and the texture keeps better. Measured on lavapipe
+    /// (256x256, default vortex, 300 frames, on against off): texture energy at frame 300
+    /// gravel 0.00472 against 0.00634, brick 0.00114 against 0.00218, grass 0.00322
+    /// against 0.00470; flow-warped difference 0.0587 against 0.0612 (gravel);
+    /// sharpness at frame 300 1.13 against 1.23 (frame 0: 1.08 and 1.05). A uniform flow
+    /// of whole pixels still moves every level's coordinates exactly, patch seams
+    /// included (the frames' drift, see `SynthPlan::drift_index`), but at odd speeds the
+    /// corrections retouch more pixels than with the finest level advected.
     pub upsample_finest: bool,
     /// Distortion threshold `c` on `|J_obs - J|_F` (Jacobian units): pixels beyond it
     /// are upsampled again from the coarser level. A step off by a whole pixel on both
@@ -233,15 +233,15 @@ pub struct AdvectOptions {
     /// 0.0043, flow-warped frame difference 0.058 vs 0.031. On by default: it looks
     /// like the exemplar; bilinear looks soft.
     pub nearest: bool,
-    /// Score the similarity-set candidates of the finest level's correction at their
-    /// bilinearly interpolated position, as the coherent ones (4 reads each), instead of
+    /// Score the similarity-set candidates of the most corrected level's correction (the
+    /// finest advected level) at their bilinearly interpolated position, as the coherent ones (4 reads each), instead of
     /// at their nearest texel as synthesis does. Off by default: measured (256x256, vortex,
     /// 300 frames, energy at frame 300, on against off) at about the same figures (gravel
     /// 0.00572 against 0.00578; brick 0.00117 against 0.00131, but keeping less of its
     /// mortar) for a fifth more time per frame at 512x512.
     pub interpolate_sets: bool,
-    /// Read the finest level's `Et` and `qe` at the quarter pixel nearest to each
-    /// interpolated position (`PassParams::quarter`: the GPU then reads them from tables
+    /// Read the most corrected level's `Et` and `qe` (where it uses the projected
+    /// distance) at the quarter pixel nearest to each interpolated position (`PassParams::quarter`: the GPU then reads them from tables
     /// supersampled at quarter pixels, one read instead of four). On by default:
     /// measured (256x256, vortex, 300 frames, on against off) at figures a few percent
     /// either way (energy at frame 300: gravel 0.00588 against 0.00578, brick 0.00121
@@ -258,10 +258,11 @@ pub struct AdvectOptions {
     /// Score the similarity-set candidates on every `sets_every`-th correction of a
     /// pixel, 1..=16 (the frames' own [`crate::SynthParams::sets_every`], which frame 0's
     /// synthesis keeps); the other corrections score the coherent candidates only. With
-    /// one pass (the default) this spreads over the frames on the finest level (the
-    /// coarser advected levels keep their sets); with more, it applies to each frame's
-    /// passes, the first of which always scores them.
-    /// Default 2: measured (256x256, vortex, 300 frames, 2 against 1) at energies 1-2%
+    /// one pass (the default) this spreads over the frames on the most corrected level
+    /// (the coarser advected levels keep their sets); with more, it applies to each
+    /// frame's passes, the first of which always scores them.
+    /// Default 2: measured with the finest level advected (forty-fourth session; 256x256,
+    /// vortex, 300 frames, 2 against 1) at energies 1-2%
     /// higher at frame 300 (gravel 0.00634 against 0.00623, brick 0.00218 against
     /// 0.00216, grass 0.00470 against 0.00463), the same warped difference (0.0612,
     /// 0.0310, 0.0532 against 0.0608, 0.0310, 0.0528), for about an eighth less of a
@@ -270,8 +271,8 @@ pub struct AdvectOptions {
 }
 
 impl AdvectOptions {
-    /// Checks the options (1-16 levels, a positive finite threshold, at most 16 passes,
-    /// similarity sets every 1-16 corrections);
+    /// Checks the options (1-16 levels, at least 2 with the finest upsampled, a positive
+    /// finite threshold, at most 16 passes, similarity sets every 1-16 corrections);
     /// [`crate::gpu::advect::Advection::new`] and
     /// [`crate::gpu::advect::Advection::set_options`] call it.
     pub fn check(&self) -> Result<()> {
