@@ -119,9 +119,10 @@ pub struct AdvectArgs {
     pub correct_coherent: bool,
 
     /// Score the similarity-set candidates on every N-th correction of a pixel on the
-    /// most corrected level (the second-finest, or the finest with --advect-finest), 1..=16 (1: every correction, as synthesis does by default; 2 is about
-    /// an eighth faster per frame for energies 1-2% higher); with --passes above 1, on
-    /// every N-th pass of a frame
+    /// most corrected level (the second-finest, or the finest with --advect-finest),
+    /// 1..=16 (1: every correction, as synthesis does by default; 2 is about an eighth
+    /// faster per frame for energies 1-2% higher); with --passes above 1, on every N-th
+    /// pass of a frame
     #[arg(long, value_name = "N", default_value_t = AdvectOptions::default().sets_every)]
     pub sets_every: u32,
 
