@@ -1066,8 +1066,9 @@ impl GpuSynthesizer {
             },
         );
         // Corrections that read quarter pixels at the schedule's most corrected level
-        // (quarter_tables_level) read them from its supersampled tables when those fit (a second bind group: the tables replace
-        // `et` and `qe`, so no binding is added to the layout).
+        // (quarter_tables_level) read them from its supersampled tables when those fit
+        // (a second bind group: the tables replace `et` and `qe`, so no binding is added
+        // to the layout).
         let fine_level = crate::passes::plan::quarter_tables_level(schedule, &self.analysis);
         let fine_dispatch =
             |d: &Dispatch| Some(d.level) == fine_level && d.reads_quarter_tables(&self.analysis);
