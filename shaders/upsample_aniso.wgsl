@@ -17,9 +17,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         coords[i] = upsample_at(params.origin + q, i);
         return;
     }
-    // Advection frames, the finest level: upsampled as the pixel at q - f, plus h J f,
-    // with f the drift's phase (see upsample_aniso.rs, run).
-    let f = coords[params.drift + 1u] & vec2<i32>(1);
+    // Advection frames, the levels a frame upsamples: as the pixel at q - f, plus h J f,
+    // with f the phase of the drift's whole level pixels (see upsample_aniso.rs, run).
+    let f = (coords[params.drift + 1u] >> vec2<u32>(params.steps)) & vec2<i32>(1);
     let c = upsample_at(params.origin + q - f, i);
     coords[i] = fit_coord(c + scaled_jd(params.spacing, jac_at(i), f));
 }

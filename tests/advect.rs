@@ -104,7 +104,7 @@ fn advection_frames_gpu_match_cpu() {
     let mut cpu = vec![[0i32; 2]; plan.coord_buffer_len() as usize];
     run_cpu_frame(
         &a,
-        &plan.advect_first_schedule(&a, opts.nearest, opts.upsample_finest),
+        &plan.advect_first_schedule(&a, &opts),
         &mut cpu,
         &jac,
         &[],
@@ -145,12 +145,16 @@ fn advection_frames_gpu_match_cpu() {
         // most corrected level reads quarter pixels from its supersampled tables (the
         // second-finest; in frame 5, which advects the finest level too, the finest) and
         // the coarser advected levels read them without tables (interpolating in the
-        // shader). Frame 2 also corrects the pixels inside coherent patches.
+        // shader). Frame 2 also corrects the pixels inside coherent patches. Frame 6
+        // re-synthesizes two levels below the finest (their upsampling following the
+        // drift that frame 3's uniform flow left).
         let o = AdvectOptions {
             interpolate_sets: f % 2 == 1,
             quarter_reads: f != 2,
             skip_coherent: f != 1,
             upsample_finest: f != 4,
+            resynthesize: if f == 5 { 2 } else { 0 },
+            levels: if f == 5 { 4 } else { opts.levels },
             ..opts
         };
         adv.set_options(o).unwrap();
@@ -333,11 +337,13 @@ fn uniform_flow_of_whole_pixels_translates_exactly() {
     let v = Flow::Uniform { vx: 2.0, vy: -1.0 }
         .sample(w, h, 0.0)
         .unwrap();
-    for upsample_finest in [true, false] {
+    for (upsample_finest, resynthesize) in [(true, 0), (false, 0), (true, 2)] {
         for passes in [0, 1] {
             let o = AdvectOptions {
                 upsample_finest,
                 passes,
+                resynthesize,
+                levels: 2 + resynthesize.max(1),
                 ..Default::default()
             };
             let mut adv = Advection::new(ctx(), synth.clone(), &params, o).unwrap();
@@ -358,23 +364,31 @@ fn uniform_flow_of_whole_pixels_translates_exactly() {
                 }
                 let same = same as f64 / total as f64;
                 eprintln!(
-                    "upsampled finest {upsample_finest}, passes {passes}: warped {warped:.3}, \
-                     unwarped {still:.3}, identical {same:.3}"
+                    "upsampled finest {upsample_finest}, re-synthesized {resynthesize}, \
+                     passes {passes}: warped {warped:.3}, unwarped {still:.3}, identical \
+                     {same:.3}"
                 );
                 // Measured over frames 1-5: 0.95-0.999 without corrections (the first
                 // frame re-upsamples a few pixels that continue no patch), 0.94-0.997
                 // with the finest level advected, 0.79-0.89 with it upsampled.
                 // The warped difference against the unwarped: 0.6-5.6% and 0.1-4%,
                 // and 8.5-18% with the finest level upsampled and corrections.
+                // Re-synthesized levels: 0.73-0.92 without corrections (the advected
+                // level's few re-upsampled pixels are 8x8 finest pixels each), warped
+                // 7-30% of unwarped; with corrections 0.35-0.46 and 50-64%: they read
+                // the exemplar at the advected level's sub-pixel offset, which a whole
+                // pixel per frame of the finest level changes (see `AdvectOptions`).
                 let (want, ratio) = match (passes, upsample_finest) {
+                    (0, _) if resynthesize > 0 => (0.7, 0.35),
+                    _ if resynthesize > 0 => (0.3, 0.75),
                     (0, _) => (0.93, 0.1),
                     (_, false) => (0.9, 0.1),
                     _ => (0.75, 0.25),
                 };
                 assert!(
                     warped < ratio * still && same > want,
-                    "upsampled finest {upsample_finest}, passes {passes}: warped {warped}, \
-                     unwarped {still}, identical {same}"
+                    "upsampled finest {upsample_finest}, re-synthesized {resynthesize}, \
+                     passes {passes}: warped {warped}, unwarped {still}, identical {same}"
                 );
                 prev = cur;
             }
@@ -589,6 +603,19 @@ fn bad_velocities_and_time_steps() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("at least 2 levels"), "{e}");
+    // Re-synthesized levels need the finest upsampled and an advected level below them.
+    for (levels, upsample_finest) in [(3, true), (6, false)] {
+        let e = adv
+            .set_options(AdvectOptions {
+                levels,
+                upsample_finest,
+                resynthesize: 2,
+                ..AdvectOptions::default()
+            })
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("at least 4 levels"), "{e}");
+    }
     adv.set_options(AdvectOptions {
         levels: 1,
         upsample_finest: false,
@@ -906,7 +933,7 @@ fn surface_advection_gpu_matches_cpu() {
     let mut cpu = vec![[0i32; 2]; plan.coord_buffer_len() as usize];
     run_cpu_frame(
         &a,
-        &plan.advect_first_schedule(&a, o.nearest, o.upsample_finest),
+        &plan.advect_first_schedule(&a, &o),
         &mut cpu,
         &jac,
         &surface,
@@ -1110,4 +1137,64 @@ fn advection_frames_read_the_finest_quarter_tables() {
             }
         }
     }
+}
+
+/// Re-synthesizing the levels below the finest every frame
+/// (`AdvectOptions::resynthesize`) keeps a vortex's texture energy near frame 0's, where
+/// advecting them lets it rise (the patches break up as they turn), at the price of
+/// more change between frames.
+#[test]
+fn resynthesized_levels_keep_the_texture_energy_under_a_vortex() {
+    let (ex, synth) = asset("gravel");
+    let exi = ex_image(&ex);
+    let (w, h) = (96u32, 96u32);
+    let params = SynthParams {
+        width: w,
+        height: h,
+        ..SynthParams::default()
+    };
+    let v = Flow::Vortex {
+        cx: 0.5,
+        cy: 0.5,
+        omega: 0.02,
+    }
+    .sample(w, h, 0.0)
+    .unwrap();
+    let mut figures = Vec::new();
+    for resynthesize in [0, 3] {
+        let o = AdvectOptions {
+            resynthesize,
+            levels: 2 + resynthesize.max(1),
+            ..AdvectOptions::default()
+        };
+        let mut adv = Advection::new(ctx(), synth.clone(), &params, o).unwrap();
+        let energy = |rgba: &[u8]| texture_energy(&exi, &grey(rgba, w, h), 3).unwrap();
+        let first = adv.read_rgba8(ctx()).unwrap();
+        let mut prev = first.clone();
+        let mut warped = 0.0;
+        for _ in 0..100 {
+            adv.step(ctx(), &v, 1.0).unwrap();
+            let cur = adv.read_rgba8(ctx()).unwrap();
+            let flow = |x: f32, y: f32| {
+                let i = (y as u32 * w + x as u32) as usize;
+                (v[i][0], v[i][1])
+            };
+            warped += warped_diff(&prev, &cur, w, h, flow, 6) / 100.0;
+            prev = cur;
+        }
+        let (e0, e100) = (energy(&first), energy(&prev));
+        eprintln!(
+            "re-synthesized {resynthesize}: energy {e0:.5} -> {e100:.5}, warped difference \
+             {warped:.3}"
+        );
+        figures.push((e0, e100, warped));
+    }
+    // Measured (twice the default vortex's speed): advected 0.0039 -> 0.0093, warped
+    // difference 16.5; re-synthesized 0.0026 -> 0.0039, 21.1.
+    let (advected, resynthesized) = (figures[0], figures[1]);
+    assert!(
+        resynthesized.1 < 1.7 * resynthesized.0 && resynthesized.1 < 0.6 * advected.1,
+        "{figures:?}"
+    );
+    assert!(resynthesized.2 < 1.6 * advected.2, "{figures:?}");
 }

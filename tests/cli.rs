@@ -1203,6 +1203,21 @@ fn review_findings_fail_cleanly() {
             GRAVEL,
             "--flow",
             "vortex",
+            "--resynthesize",
+            "2",
+            "-o",
+            "frames",
+        ],
+        1,
+        "at least 4 levels (--levels)",
+    );
+    fails(
+        &dir,
+        &[
+            "advect",
+            GRAVEL,
+            "--flow",
+            "vortex",
             "--sets-every",
             "0",
             "-o",

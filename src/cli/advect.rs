@@ -70,6 +70,14 @@ pub struct AdvectArgs {
     #[arg(long)]
     pub advect_finest: bool,
 
+    /// Levels below the finest that every frame re-synthesizes (upsampled from the
+    /// advected levels and corrected, as in a synthesis) instead of advecting them: a
+    /// turning flow then breaks up only the coarse advected levels, and the texture
+    /// keeps its frame-0 energy, for more change between frames; --levels must be at
+    /// least this + 2
+    #[arg(long, value_name = "K", default_value_t = AdvectOptions::default().resynthesize)]
+    pub resynthesize: usize,
+
     /// Distortion threshold |J_obs - J|_F beyond which a pixel is re-synthesized (steps
     /// off by a whole pixel on both sides are patch seams, not distortion, so thresholds
     /// of about 1 and more re-synthesize little: only the pixels with seams on both sides
@@ -344,6 +352,7 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
         skip_coherent: !args.correct_coherent,
         sets_every: args.sets_every,
         upsample_finest: !args.advect_finest,
+        resynthesize: args.resynthesize,
     };
     options.check()?;
     // The temporal figures printed at the end use 5x5 windows: refuse what they cannot

@@ -177,11 +177,9 @@ impl Advection {
             quantize_layout,
             frame: 0,
         };
-        let schedule = this.plan.advect_first_schedule(
-            this.synthesizer.analysis(),
-            this.options.nearest,
-            this.options.upsample_finest,
-        );
+        let schedule = this
+            .plan
+            .advect_first_schedule(this.synthesizer.analysis(), &this.options);
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
         this.record(ctx, &mut encoder, &schedule, true)?;
         ctx.scoped(|| ctx.queue.submit([encoder.finish()]))?;

@@ -215,6 +215,17 @@ pub struct AdvectOptions {
     /// included (the frames' drift, see `SynthPlan::drift_index`), but at odd speeds the
     /// corrections retouch more pixels than with the finest level advected.
     pub upsample_finest: bool,
+    /// With [`Self::upsample_finest`]: how many levels below the finest each frame
+    /// re-synthesizes instead of advecting them. They are upsampled from the finest
+    /// advected level (following the drift's phase, so whole-pixel uniform flows still
+    /// move them exactly) and corrected with `passes` passes, without jitter, as in a
+    /// synthesis; only the coarser levels move with the flow, in place. A turning flow
+    /// then breaks up only the coarse advected level's patches, and the finer levels
+    /// are made whole again every frame, so the texture energy stays near frame 0's;
+    /// the price is more change between frames (the re-synthesized detail follows the
+    /// advected coarse coordinates, but not pixel for pixel). `levels` counts them: at
+    /// least `resynthesize + 2`. 0 advects every level but the finest.
+    pub resynthesize: usize,
     /// Distortion threshold `c` on `|J_obs - J|_F` (Jacobian units): pixels beyond it
     /// are upsampled again from the coarser level. A step off by a whole pixel on both
     /// sides is a patch seam and does not count, so `c` of about 1 or more flags
@@ -271,7 +282,8 @@ pub struct AdvectOptions {
 }
 
 impl AdvectOptions {
-    /// Checks the options (1-16 levels, at least 2 with the finest upsampled, a positive
+    /// Checks the options (1-16 levels, at least 2 with the finest upsampled and
+    /// `resynthesize + 2` with re-synthesized levels, a positive
     /// finite threshold, at most 16 passes, similarity sets every 1-16 corrections);
     /// [`crate::gpu::advect::Advection::new`] and
     /// [`crate::gpu::advect::Advection::set_options`] call it.
@@ -289,12 +301,29 @@ impl AdvectOptions {
             || self.threshold <= 0.0
             || self.passes > 16
             || !(1..=16).contains(&self.sets_every)
+            || self.resynthesize > 14
         {
             return Err(Error::InvalidParameter(format!(
                 "advection of {} levels, threshold {}, {} passes, similarity sets every {} \
                  corrections: use 1-16 levels, a positive threshold, at most 16 passes and \
-                 sets every 1-16 corrections",
+                 sets every 1-16 corrections (and at most 14 re-synthesized levels)",
                 self.levels, self.threshold, self.passes, self.sets_every
+            )));
+        }
+        if self.resynthesize > 0 && (!self.upsample_finest || self.levels < self.resynthesize + 2) {
+            return Err(Error::InvalidParameter(format!(
+                "advection of {} levels with {} re-synthesized below the finest{}: the frames \
+                 need the finest level upsampled and at least one advected level, so use at \
+                 least {} levels (--levels) without --advect-finest, or fewer re-synthesized \
+                 levels (--resynthesize)",
+                self.levels,
+                self.resynthesize,
+                if self.upsample_finest {
+                    ""
+                } else {
+                    " and the finest advected"
+                },
+                self.resynthesize + 2
             )));
         }
         Ok(())
@@ -313,6 +342,7 @@ impl Default for AdvectOptions {
             skip_coherent: true,
             sets_every: 2,
             upsample_finest: true,
+            resynthesize: 0,
         }
     }
 }

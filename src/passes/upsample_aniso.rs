@@ -68,18 +68,19 @@ fn upsample_from(
     )
 }
 
-/// With `p.drift` (the finest level in advection frames): the drift's phase, its whole
-/// finest pixels mod 2 per axis; else 0.
+/// With `p.drift` (the levels an advection frame upsamples): the drift's phase, its whole
+/// pixels of this level (`2^steps` finest pixels each) mod 2 per axis; else 0.
 pub fn drift_phase(p: &PassParams, coords: &[[i32; 2]]) -> [i32; 2] {
     if p.drift == 0 {
         return [0, 0];
     }
-    coords[p.drift as usize + 1].map(|a| a & 1)
+    coords[p.drift as usize + 1].map(|a| (a >> p.steps) & 1)
 }
 
-/// The level's upsampling. With a drift phase `f` (advection frames, the finest level:
-/// the coarser level moves by whole pixels of its own, two finest pixels, so a uniform
-/// flow of an odd number of pixels leaves it half a pixel behind, in place), pixel `p` is
+/// The level's upsampling. With a drift phase `f` (advection frames, the levels they
+/// upsample: the coarser level moves by whole pixels of its own, two of this level's, so
+/// a uniform flow of an odd number of this level's pixels leaves it half a pixel behind,
+/// in place), pixel `p` is
 /// upsampled as the pixel at `p - f`, plus `h J f`: the blocks of 2x2 children, and so
 /// the patch seams, move with the drift, and within a patch the result is the same.
 pub fn run(p: &PassParams, coords: &mut [[i32; 2]], jac: &[[i32; 4]]) {
