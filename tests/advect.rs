@@ -616,6 +616,15 @@ fn bad_velocities_and_time_steps() {
             .to_string();
         assert!(e.contains("at least 4 levels"), "{e}");
     }
+    let e = adv
+        .set_options(AdvectOptions {
+            levels: 16,
+            resynthesize: 15,
+            ..AdvectOptions::default()
+        })
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("at most 14"), "{e}");
     adv.set_options(AdvectOptions {
         levels: 1,
         upsample_finest: false,
@@ -947,7 +956,14 @@ fn surface_advection_gpu_matches_cpu() {
     let v = texsyn::surface::flow::atlas_velocity(&prep, &flow, 0.0).unwrap();
     assert!(v.iter().any(|p| p[0] != 0.0 || p[1] != 0.0));
     let q: Vec<[i32; 2]> = v.iter().map(|&p| quantize_velocity(p, 1.0)).collect();
-    for f in 0..2u64 {
+    // Frame 3 re-synthesizes two levels below the finest (their fills included).
+    for f in 0..3u64 {
+        let o = AdvectOptions {
+            resynthesize: if f == 2 { 2 } else { 0 },
+            levels: if f == 2 { 4 } else { o.levels },
+            ..o
+        };
+        adv.set_options(o).unwrap();
         adv.step(ctx(), &v, 1.0).unwrap();
         let s = plan.advect_schedule(&a, &o, f);
         run_cpu_frame(&a, &s, &mut cpu, &jac, &surface, &q);

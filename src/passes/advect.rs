@@ -307,13 +307,18 @@ impl AdvectOptions {
             || self.threshold <= 0.0
             || self.passes > 16
             || !(1..=16).contains(&self.sets_every)
-            || self.resynthesize > 14
         {
             return Err(Error::InvalidParameter(format!(
                 "advection of {} levels, threshold {}, {} passes, similarity sets every {} \
                  corrections: use 1-16 levels, a positive threshold, at most 16 passes and \
-                 sets every 1-16 corrections (and at most 14 re-synthesized levels)",
+                 sets every 1-16 corrections",
                 self.levels, self.threshold, self.passes, self.sets_every
+            )));
+        }
+        if self.resynthesize > 14 {
+            return Err(Error::InvalidParameter(format!(
+                "{} re-synthesized levels: use at most 14 (--resynthesize)",
+                self.resynthesize
             )));
         }
         if self.resynthesize > 0 && (!self.upsample_finest || self.levels < self.resynthesize + 2) {
