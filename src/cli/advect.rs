@@ -60,7 +60,8 @@ pub struct AdvectArgs {
     pub every: u32,
 
     /// Levels each frame works on (the finest ones): the finest is upsampled from the
-    /// others, which are advected (with --advect-finest, all are advected)
+    /// others, which are advected (with --advect-finest, all are advected; with
+    /// --resynthesize K, the K below the finest are re-synthesized)
     #[arg(long, default_value_t = AdvectOptions::default().levels)]
     pub levels: usize,
 

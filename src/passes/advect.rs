@@ -197,8 +197,10 @@ pub fn distortion_max(c: f32, h: i32) -> u32 {
 pub struct AdvectOptions {
     /// Levels each frame works on (the finest ones; the coarser ones keep the first
     /// frame's synthesis): with [`Self::upsample_finest`] the finest of them is
-    /// upsampled and the others are advected and corrected, otherwise all are advected
-    /// and corrected. At least 2 with `upsample_finest` (one advected level).
+    /// upsampled, the [`Self::resynthesize`] levels below it re-synthesized, and the
+    /// others advected and corrected, otherwise all are advected and corrected. At least
+    /// 2 with `upsample_finest` (one advected level), `resynthesize + 2` with
+    /// re-synthesized levels.
     pub levels: usize,
     /// Make the finest level each frame by upsampling the advected second-finest level,
     /// without correcting it, as a synthesis makes its finest level by default; the
