@@ -496,6 +496,24 @@ fn vortex_keeps_the_texture_for_300_frames() {
     assert!(sharp300 > 0.8 * sharp0, "blurred: {sharp0} -> {sharp300}");
 }
 
+/// Synthesis parameters of a `w` x `h` output and the velocities of a rigid vortex about
+/// its centre at `omega` radians per frame.
+fn centred_vortex(w: u32, h: u32, omega: f32) -> (SynthParams, Vec<[f32; 2]>) {
+    let params = SynthParams {
+        width: w,
+        height: h,
+        ..SynthParams::default()
+    };
+    let v = Flow::Vortex {
+        cx: 0.5,
+        cy: 0.5,
+        omega,
+    }
+    .sample(w, h, 0.0)
+    .unwrap();
+    (params, v)
+}
+
 /// Grass under a vortex: pixels that continue no patch must be re-synthesized, or they
 /// spread and the correction settles them on the exemplar's flat content (leaves,
 /// shadows), blurring the texture. Before they were flagged this kept 0.79 of frame 0's
@@ -507,18 +525,7 @@ fn vortex_does_not_blur_grass() {
     let (ex, synth) = asset("grass");
     let exemplar_sharpness = texsyn::quality::high_frequency_energy(&ex_image(&ex));
     let (w, h) = (96u32, 96u32);
-    let params = SynthParams {
-        width: w,
-        height: h,
-        ..SynthParams::default()
-    };
-    let v = Flow::Vortex {
-        cx: 0.5,
-        cy: 0.5,
-        omega: 0.02,
-    }
-    .sample(w, h, 0.0)
-    .unwrap();
+    let (params, v) = centred_vortex(w, h, 0.02);
     let mut adv = Advection::new(ctx(), synth, &params, AdvectOptions::default()).unwrap();
     let sharpness = |adv: &Advection| {
         texsyn::quality::high_frequency_energy(&grey(&adv.read_rgba8(ctx()).unwrap(), w, h))
@@ -1164,18 +1171,7 @@ fn resynthesized_levels_keep_the_texture_energy_under_a_vortex() {
     let (ex, synth) = asset("gravel");
     let exi = ex_image(&ex);
     let (w, h) = (96u32, 96u32);
-    let params = SynthParams {
-        width: w,
-        height: h,
-        ..SynthParams::default()
-    };
-    let v = Flow::Vortex {
-        cx: 0.5,
-        cy: 0.5,
-        omega: 0.02,
-    }
-    .sample(w, h, 0.0)
-    .unwrap();
+    let (params, v) = centred_vortex(w, h, 0.02);
     let mut figures = Vec::new();
     for resynthesize in [0, 3] {
         let o = AdvectOptions {
