@@ -42,15 +42,25 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         let vc = velocity[u32((ws.y / 2) * ws.x + ws.x / 2)];
         k = (vc + vec2<i32>(unit >> 1u)) >> vec2<u32>(10u + params.steps);
     }
-    // Clamped to 128 pixels per component (only reached on coarse levels at near the
-    // largest speeds): keeps J V within i32.
-    let v = clamp(vq - k * unit, vec2<i32>(-(128 << 10u)), vec2<i32>(128 << 10u));
     let src = clamp(q - k, vec2<i32>(0), params.size - vec2<i32>(1));
     let prev = coords[params.coord_base + u32(src.y * params.size.x + src.x)];
     let j = jac_at(i);
-    // J V in 1/2^20 exemplar pixel to 1/256, rounded with this frame's offset (a
+    // J (V - k) in 1/2^20 exemplar pixel to 1/256, rounded with this frame's offset (a
     // low-discrepancy sequence: the rounding errors of a pixel do not add up over frames).
-    let jv = vec2<i32>(j.x * v.x + j.y * v.y, j.z * v.x + j.w * v.y);
-    let o = (jv + vec2<i32>(i32(params.dither))) >> vec2<u32>(12u);
+    // J k 2^steps is taken apart into whole 1/256 units and a remainder, so nothing
+    // overflows on coarse levels, where k is a whole level pixel however slow the flow
+    // (see advect.rs, displacement).
+    let jv = vec2<i32>(j.x * vq.x + j.y * vq.y, j.z * vq.x + j.w * vq.y);
+    let jk = vec2<i32>(j.x * k.x + j.y * k.y, j.z * k.x + j.w * k.y);
+    let up = params.steps + 10u;
+    var hi: vec2<i32>;
+    var lo = vec2<i32>(0);
+    if (up >= 12u) {
+        hi = jk << vec2<u32>(up - 12u);
+    } else {
+        hi = jk >> vec2<u32>(12u - up);
+        lo = (jk - (hi << vec2<u32>(12u - up))) << vec2<u32>(up);
+    }
+    let o = ((jv - lo + vec2<i32>(i32(params.dither))) >> vec2<u32>(12u)) - hi;
     coords[params.flag_base + u32(q.y * params.size.x + q.x)] = fit_coord(prev - o);
 }

@@ -138,6 +138,8 @@ fn advection_frames_gpu_match_cpu() {
             cy: 0.3,
             strength: -2.0,
         },
+        Flow::Uniform { vx: 6.0, vy: -5.0 },
+        Flow::Uniform { vx: 5.5, vy: 4.5 },
     ];
     for (f, flow) in flows.iter().enumerate() {
         // Both ways of scoring the similarity sets, in turn; quarter-pixel reads but in
@@ -147,14 +149,20 @@ fn advection_frames_gpu_match_cpu() {
         // the coarser advected levels read them without tables (interpolating in the
         // shader). Frame 2 also corrects the pixels inside coherent patches. Frame 6
         // re-synthesizes two levels below the finest (their upsampling following the
-        // drift that frame 3's uniform flow left).
+        // drift that frame 3's uniform flow left). Frames 8 and 9 advect every level
+        // under fast uniform flows, so that the coarse levels shift by whole pixels of
+        // their own as the drift crosses them.
         let o = AdvectOptions {
             interpolate_sets: f % 2 == 1,
             quarter_reads: f != 2,
             skip_coherent: f != 1,
             upsample_finest: f != 4,
             resynthesize: if f == 5 { 2 } else { 0 },
-            levels: if f == 5 { 4 } else { opts.levels },
+            levels: match f {
+                5 => 4,
+                7 | 8 => 16,
+                _ => opts.levels,
+            },
             ..opts
         };
         adv.set_options(o).unwrap();
@@ -609,20 +617,47 @@ fn bad_velocities_and_time_steps() {
         })
         .unwrap_err()
         .to_string();
-    assert!(e.contains("at least 2 levels"), "{e}");
-    // Re-synthesized levels need the finest upsampled and an advected level below them.
-    for (levels, upsample_finest) in [(3, true), (6, false)] {
-        let e = adv
-            .set_options(AdvectOptions {
-                levels,
-                upsample_finest,
-                resynthesize: 2,
-                ..AdvectOptions::default()
-            })
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("at least 4 levels"), "{e}");
-    }
+    assert!(e.contains("use 2-16 levels"), "{e}");
+    // No level at all: the advice must not be another failing setting.
+    let e = adv
+        .set_options(AdvectOptions {
+            levels: 0,
+            upsample_finest: false,
+            ..AdvectOptions::default()
+        })
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("use 1-16 levels"), "{e}");
+    // Re-synthesized levels need an advected level above them and the finest upsampled.
+    let e = adv
+        .set_options(AdvectOptions {
+            levels: 3,
+            resynthesize: 2,
+            ..AdvectOptions::default()
+        })
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("at least 4 levels"), "{e}");
+    let e = adv
+        .set_options(AdvectOptions {
+            levels: 6,
+            upsample_finest: false,
+            resynthesize: 2,
+            ..AdvectOptions::default()
+        })
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("drop --advect-finest"), "{e}");
+    // More re-synthesized levels than the pyramid has room for: an error, not fewer.
+    let e = adv
+        .set_options(AdvectOptions {
+            levels: 16,
+            resynthesize: 14,
+            ..AdvectOptions::default()
+        })
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("can be re-synthesized"), "{e}");
     let e = adv
         .set_options(AdvectOptions {
             levels: 16,

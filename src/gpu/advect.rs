@@ -63,6 +63,7 @@ impl Advection {
         let params = Self::synthesis_params(params);
         options.check()?;
         let plan = SynthPlan::new(synthesizer.analysis(), &params)?;
+        options.check_for_pyramid(plan.levels.len())?;
         // The synthesis of frame 0 has the same limits (texture sides, buffers).
         synthesizer.check_output(ctx, &plan)?;
         let n_coords = plan.coord_buffer_len();
@@ -293,7 +294,7 @@ impl Advection {
     }
 
     pub fn set_options(&mut self, options: AdvectOptions) -> Result<()> {
-        options.check()?;
+        options.check_for_pyramid(self.plan.levels.len())?;
         self.options = options;
         Ok(())
     }

@@ -1,8 +1,9 @@
 //! Mirrors of `shaders/advect.wgsl` and `shaders/distortion.wgsl`: texture advection
 //! (paper section 7, ALGORITHM.md "Advection"). Per frame, the finest levels' continuous
 //! coordinates are advected without resampling, `S[p] = S'[p - k] - J(p) (V(p) - k)`
-//! with `k` the velocity at the window's centre rounded to whole pixels of the level
-//! (one drift for all pixels, so neighbours stay coherent), so the texture moves with the
+//! with `k` one whole shift of the level for all pixels (so neighbours stay coherent): in
+//! frames the change of the drift's whole level pixels ([`whole_shift`]; the drift sums
+//! the velocity at the window's centre in whole finest pixels), so the texture moves with the
 //! flow (a uniform flow of whole pixels translates it exactly, seams included); where the
 //! advected coordinates no longer follow the desired Jacobian (`|J_obs - J|_F > c`,
 //! divergent or shearing flows stretch them; steps off by a whole pixel on both sides
@@ -20,11 +21,6 @@ use crate::error::{Error, Result};
 pub const VELOCITY_FRAC: u32 = 10;
 /// Largest speed, output pixels per frame.
 pub const MAX_SPEED: f32 = 64.0;
-/// Largest residual `V - k` per component (1/1024 pixel): 128 pixels, so that `J V`
-/// (|J| <= 8 in 1/1024) stays within i32. The residual is at most `MAX_SPEED` plus half
-/// a level pixel, so this only bites on levels 64 and more pixels coarser than the
-/// finest at speeds near the largest.
-const MAX_RESIDUAL: i32 = 128 << VELOCITY_FRAC;
 /// Bits dropped from `J V` (1/2^(JAC_FRAC + VELOCITY_FRAC)) to reach coordinates
 /// (1/2^COORD_FRAC).
 const JV_SHIFT: u32 = 10 + VELOCITY_FRAC - super::common::COORD_FRAC;
@@ -79,25 +75,52 @@ pub fn whole_shift(p: &PassParams, coords: &[[i32; 2]], velocity: &[[i32; 2]]) -
     centre_velocity(p, velocity).map(|c| (c + (unit >> 1)) >> (VELOCITY_FRAC + p.steps))
 }
 
+/// One component of `J (V - k 2^steps)` in coordinate units (1/2^COORD_FRAC exemplar
+/// pixel), rounded down after adding this frame's offset `dither`: `jv` is the row of
+/// `J V` (1/2^(10 + VELOCITY_FRAC)), `jk` the row of `J k` (1/1024, k in whole level
+/// pixels). `J k 2^steps` is split into whole coordinate units and a remainder, so the
+/// result is exact without forming `J (V - k 2^steps)`, which overflows i32 on coarse
+/// levels (a level pixel 256 finest pixels wide is 2^18 velocity units, times `J` up to
+/// 2^13): the frames' drift shifts such a level by a whole pixel on the frame its share
+/// of the drift crosses one, however slow the flow.
+pub fn displacement(jv: i32, jk: i32, steps: u32, dither: i32) -> i32 {
+    // `J k 2^(steps + VELOCITY_FRAC)` = hi 2^JV_SHIFT + lo, 0 <= lo < 2^JV_SHIFT.
+    let up = steps + VELOCITY_FRAC;
+    let (hi, lo) = if up >= JV_SHIFT {
+        (jk << (up - JV_SHIFT), 0)
+    } else {
+        let hi = jk >> (JV_SHIFT - up);
+        (hi, (jk - (hi << (JV_SHIFT - up))) << up)
+    };
+    ((jv - lo + dither) >> JV_SHIFT) - hi
+}
+
 /// Mirror of `advect.wgsl`: the level's advected coordinates, into the scratch region
 /// (`flag_base`), from which [`distortion`] copies them back.
 pub fn advect(p: &PassParams, coords: &mut [[i32; 2]], jac: &[[i32; 4]], velocity: &[[i32; 2]]) {
-    let unit = 1i32 << (VELOCITY_FRAC + p.steps);
     let k = whole_shift(p, coords, velocity);
     for y in 0..p.size[1] {
         for x in 0..p.size[0] {
             let i = p.coord_base as usize + (y * p.size[0] + x) as usize;
             let vq = velocity_at(p, velocity, [p.origin[0] + x, p.origin[1] + y]);
-            let v = [vq[0] - k[0] * unit, vq[1] - k[1] * unit]
-                .map(|c| c.clamp(-MAX_RESIDUAL, MAX_RESIDUAL));
             let sx = (x - k[0]).clamp(0, p.size[0] - 1);
             let sy = (y - k[1]).clamp(0, p.size[1] - 1);
             let prev = coords[p.coord_base as usize + (sy * p.size[0] + sx) as usize];
             let j = jac[i];
             let d = p.dither as i32;
             let o = [
-                (j[0] * v[0] + j[1] * v[1] + d) >> JV_SHIFT,
-                (j[2] * v[0] + j[3] * v[1] + d) >> JV_SHIFT,
+                displacement(
+                    j[0] * vq[0] + j[1] * vq[1],
+                    j[0] * k[0] + j[1] * k[1],
+                    p.steps,
+                    d,
+                ),
+                displacement(
+                    j[2] * vq[0] + j[3] * vq[1],
+                    j[2] * k[0] + j[3] * k[1],
+                    p.steps,
+                    d,
+                ),
             ];
             coords[p.flag_base as usize + (y * p.size[0] + x) as usize] =
                 fit_coord([prev[0] - o[0], prev[1] - o[1]], p);
@@ -291,30 +314,39 @@ pub struct AdvectOptions {
 
 impl AdvectOptions {
     /// Checks the options (1-16 levels, at least 2 with the finest upsampled and
-    /// `resynthesize + 2` with re-synthesized levels, a positive
-    /// finite threshold, at most 16 passes, similarity sets every 1-16 corrections);
-    /// [`crate::gpu::advect::Advection::new`] and
-    /// [`crate::gpu::advect::Advection::set_options`] call it.
+    /// `resynthesize + 2` with re-synthesized levels, which need the finest upsampled; a
+    /// positive finite threshold, at most 16 passes, similarity sets every 1-16
+    /// corrections); [`crate::gpu::advect::Advection::new`] and
+    /// [`crate::gpu::advect::Advection::set_options`] call it through
+    /// [`Self::check_for_pyramid`].
     pub fn check(&self) -> Result<()> {
-        if self.upsample_finest && self.levels < 2 {
-            return Err(Error::InvalidParameter(format!(
-                "advection of {} level with the finest one upsampled: use at least 2 levels \
-                 (the finest is upsampled from the advected ones), or advect the finest \
-                 level too (AdvectOptions::upsample_finest = false, --advect-finest)",
-                self.levels
-            )));
+        let least = if self.upsample_finest { 2 } else { 1 };
+        if !(least..=16).contains(&self.levels) {
+            return Err(Error::InvalidParameter(if self.upsample_finest {
+                format!(
+                    "advection of {} levels with the finest one upsampled: use 2-16 levels \
+                     (--levels; the finest is upsampled from the advected ones), or 1-16 \
+                     with the finest level advected too (AdvectOptions::upsample_finest = \
+                     false, --advect-finest)",
+                    self.levels
+                )
+            } else {
+                format!(
+                    "advection of {} levels: use 1-16 levels (--levels)",
+                    self.levels
+                )
+            }));
         }
-        if !(1..=16).contains(&self.levels)
-            || !self.threshold.is_finite()
+        if !self.threshold.is_finite()
             || self.threshold <= 0.0
             || self.passes > 16
             || !(1..=16).contains(&self.sets_every)
         {
             return Err(Error::InvalidParameter(format!(
-                "advection of {} levels, threshold {}, {} passes, similarity sets every {} \
-                 corrections: use 1-16 levels, a positive threshold, at most 16 passes and \
-                 sets every 1-16 corrections",
-                self.levels, self.threshold, self.passes, self.sets_every
+                "advection with threshold {}, {} passes, similarity sets every {} \
+                 corrections: use a positive threshold, at most 16 passes and sets every \
+                 1-16 corrections",
+                self.threshold, self.passes, self.sets_every
             )));
         }
         if self.resynthesize > 14 {
@@ -323,20 +355,41 @@ impl AdvectOptions {
                 self.resynthesize
             )));
         }
-        if self.resynthesize > 0 && (!self.upsample_finest || self.levels < self.resynthesize + 2) {
+        if self.resynthesize > 0 && !self.upsample_finest {
             return Err(Error::InvalidParameter(format!(
-                "advection of {} levels with {} re-synthesized below the finest{}: the frames \
-                 need the finest level upsampled and at least one advected level, so use at \
-                 least {} levels (--levels) without --advect-finest, or fewer re-synthesized \
-                 levels (--resynthesize)",
+                "{} re-synthesized levels with the finest level advected: re-synthesized \
+                 levels need the finest level upsampled, so drop --advect-finest \
+                 (AdvectOptions::upsample_finest = true) or --resynthesize",
+                self.resynthesize
+            )));
+        }
+        if self.levels < self.resynthesize + 2 {
+            return Err(Error::InvalidParameter(format!(
+                "advection of {} levels with {} re-synthesized below the finest: the frames \
+                 need at least one advected level, so use at least {} levels (--levels) or \
+                 fewer re-synthesized levels (--resynthesize)",
                 self.levels,
                 self.resynthesize,
-                if self.upsample_finest {
-                    ""
-                } else {
-                    " and the finest advected"
-                },
                 self.resynthesize + 2
+            )));
+        }
+        Ok(())
+    }
+
+    /// [`Self::check`], and that the re-synthesized levels and the advected level above
+    /// them fit in a pyramid of `pyramid_levels` levels (the finest upsampled, at least
+    /// one advected): otherwise fewer would be re-synthesized than asked, silently.
+    pub fn check_for_pyramid(&self, pyramid_levels: usize) -> Result<()> {
+        self.check()?;
+        if self.resynthesize > 0 && self.resynthesize + 2 > pyramid_levels {
+            return Err(Error::InvalidParameter(format!(
+                "{} re-synthesized levels, but this synthesis has {} levels: at most {} \
+                 can be re-synthesized (--resynthesize; the finest level is upsampled and at \
+                 least one level above them advected); a larger output or exemplar has \
+                 more levels",
+                self.resynthesize,
+                pyramid_levels,
+                pyramid_levels.saturating_sub(2)
             )));
         }
         Ok(())
@@ -444,8 +497,8 @@ mod tests {
     #[test]
     fn largest_speeds_and_scales_do_not_overflow() {
         // A level 128 pixels coarser than the finest, the centre moving at +64 pixels
-        // per frame and this pixel at -64 (residual -192, clamped to -128) per
-        // component, J = 8 x a 45-degree rotation: J V must not wrap around.
+        // per frame and this pixel at -64 (residual -192) per component, J = 8 x a
+        // 45-degree rotation: J V must not wrap around.
         let p = PassParams {
             ex_size: [1 << 14, 1 << 14],
             size: [1, 1],
@@ -464,8 +517,8 @@ mod tests {
         let mut coords = vec![start, [0, 0]];
         advect(&p, &mut coords, &jac, &velocity);
         coords[0] = coords[1];
-        // k = 1 level pixel = 128 pixels: S[p] = S'[p - k] - J (V - k), V - k clamped.
-        let v = -128.0 * 1024.0;
+        // k = 1 level pixel = 128 pixels: S[p] = S'[p - k] - J (V - k), exactly.
+        let v = -192.0 * 1024.0;
         let expected = [
             start[0] as f64 - 0.0,
             start[1] as f64 - 2.0 * c as f64 * v / 4096.0,
@@ -534,5 +587,99 @@ mod tests {
         assert!(flags(&mut coords.clone(), 0.5).iter().all(|&f| f == 1));
         // Below the threshold (0.6 < 0.7): nothing.
         assert!(flags(&mut coords, 0.7).iter().all(|&f| f == 0));
+    }
+
+    #[test]
+    fn displacement_is_exact_at_every_level() {
+        // J (V - k 2^steps) rounded down with the dither, against 64-bit arithmetic, for
+        // every level a pyramid can have, the largest J and speeds, and k up to the
+        // shifts the drift or the centre velocity give.
+        let exact = |jv: i64, jk: i64, steps: u32, d: i64| {
+            (jv - (jk << (steps + VELOCITY_FRAC)) + d).div_euclid(1 << JV_SHIFT)
+        };
+        let fast: i32 = 64 << VELOCITY_FRAC;
+        let j: i32 = 8 << 10;
+        for steps in 0..=15u32 {
+            for jv in [
+                -2 * j * fast,
+                -j * 777 - 5,
+                -1,
+                0,
+                3,
+                4095,
+                j * fast + 12345,
+                2 * j * fast,
+            ] {
+                for jk in [
+                    -2 * j * 65,
+                    -j - 1,
+                    -3,
+                    -1,
+                    0,
+                    1,
+                    2,
+                    5,
+                    j * 3 + 7,
+                    2 * j * 65,
+                ] {
+                    if steps >= 6 && jk.abs() > 2 * j * 2 {
+                        continue; // a coarse level moves at most a level pixel or two
+                    }
+                    for d in [0, 1, 2047, 4095] {
+                        assert_eq!(
+                            displacement(jv, jk, steps, d) as i64,
+                            exact(jv as i64, jk as i64, steps, d as i64),
+                            "jv {jv}, jk {jk}, steps {steps}, dither {d}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn coarse_levels_cross_a_drift_pixel_exactly() {
+        // A level 2^steps finest pixels per pixel under a uniform flow of 8 pixels per
+        // frame, on the frame where the drift's share of the level crosses a whole
+        // pixel (k = 1 however slow the flow): a coherent patch moves by exactly 8 finest
+        // pixels of exemplar. It came out 120 and 376 pixels off at steps 8 and 9 while
+        // V - k was clamped to 128 pixels to keep J (V - k) within i32.
+        for steps in [2u32, 6, 8, 9, 12] {
+            let h = 1i32 << steps;
+            let (n, drift, flag_base) = (16i32, 40u32, 20u32);
+            let p = PassParams {
+                ex_size: [1 << 17, 1 << 17],
+                size: [n, 1],
+                spacing: h,
+                step: [h, h],
+                tileable: 1,
+                coord_frac: 8,
+                steps,
+                window_size: [64, 1],
+                flag_base,
+                drift,
+                ..Default::default()
+            };
+            let mut coords = vec![[0i32; 2]; 64];
+            for x in 0..n {
+                coords[x as usize] = [(1000 + x * h) << 8, 5 << 8];
+            }
+            coords[drift as usize] = [h * 3 - 3, 0];
+            coords[drift as usize + 1] = [h * 3 + 5, 0];
+            let velocity = vec![[8 << VELOCITY_FRAC, 0]; 64];
+            let jac = vec![[1024, 0, 0, 1024]; 64];
+            let k = whole_shift(&p, &coords, &velocity);
+            assert_eq!(k, [if steps >= 3 { 1 } else { 8 >> steps }, 0]);
+            advect(&p, &mut coords, &jac, &velocity);
+            for x in k[0]..n {
+                // S[x] = S'[x - k] - (V - k h) = S'[x] - V.
+                let want = [(1000 + x * h - 8) << 8, 5 << 8];
+                assert_eq!(
+                    coords[(flag_base as i32 + x) as usize],
+                    want,
+                    "steps {steps}, pixel {x}"
+                );
+            }
+        }
     }
 }

@@ -700,15 +700,18 @@ pub fn quarter_tables_level(schedule: &[Dispatch], analysis: &Analysis) -> Optio
 }
 
 /// A level's dispatches of `schedule` but its corrections (and the fills after them):
-/// the upsampling, any jitter, and the fills of an atlas's gutters (the finest level of
-/// an advection frame that upsamples it, [`SynthPlan::advect_schedule`]). No gather.
+/// the upsampling and the fills of an atlas's gutters (the finest level of an advection
+/// frame that upsamples it, [`SynthPlan::advect_schedule`]). No gather, and no jitter:
+/// jitter depends on the pixel's place on the screen, so re-applied every frame it
+/// would pin the detail to the screen while the flow moves it (as in
+/// [`resynthesized_levels`]); frame 0 leaves it out too, so frame 1 keeps its look.
 fn finest_without_corrections(schedule: &[Dispatch], level: usize) -> Vec<Dispatch> {
     let mut out = Vec::new();
     let mut after_correction = false;
     for d in schedule.iter().filter(|d| d.level == level) {
         match d.kind {
             PassKind::CorrectAniso | PassKind::Correct => after_correction = true,
-            PassKind::Gather | PassKind::GatherAniso => {}
+            PassKind::Gather | PassKind::GatherAniso | PassKind::Jitter => {}
             PassKind::Fill if after_correction => after_correction = false,
             _ => {
                 after_correction = false;
