@@ -165,7 +165,9 @@ impl Flow {
             } => {
                 if (*mw, *mh) != (width, height) {
                     return Err(Error::InvalidParameter(format!(
-                        "velocity field is {mw}x{mh}; the output is {width}x{height}"
+                        "the velocity map is {mw}x{mh} but the output is {width}x{height}: a \
+                         map (--flow image:FILE) must have the output's size; resize it, or \
+                         make the output its size (--size {mw}x{mh})"
                     )));
                 }
                 if data.len() != n {

@@ -179,7 +179,8 @@ fn check_float_samples(
     pixels: impl Iterator<Item = [f32; 3]>,
     width: u32,
 ) -> std::result::Result<(), String> {
-    let (mut outside, mut total, mut max) = (0usize, 0usize, 0f32);
+    let (mut outside, mut total) = (0usize, 0usize);
+    let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
     for (i, p) in pixels.enumerate() {
         for v in p {
             if !v.is_finite() {
@@ -191,16 +192,22 @@ fn check_float_samples(
             }
             if !(-1.0 / 255.0..=1.0 + 1.0 / 255.0).contains(&v) {
                 outside += 1;
-                max = max.max(v.abs());
+                lo = lo.min(v);
+                hi = hi.max(v);
             }
             total += 1;
         }
     }
     if outside * 100 > total {
         return Err(format!(
-            "{:.1}% of the samples lie outside [0, 1] (up to {max}): texsyn works on display \
+            "{:.1}% of the samples lie outside [0, 1] ({}): texsyn works on display \
              colours in [0, 1]; tone-map or rescale the image first (e.g. save it as a PNG)",
-            outside as f64 * 100.0 / total as f64
+            outside as f64 * 100.0 / total as f64,
+            match (lo < 0.0, hi > 1.0) {
+                (true, true) => format!("from {lo} to {hi}"),
+                (true, false) => format!("down to {lo}"),
+                _ => format!("up to {hi}"),
+            }
         ));
     }
     Ok(())
@@ -365,6 +372,9 @@ fn decode_image(path: &Path) -> Result<DynamicImage> {
 /// (loading them says why).
 pub fn animation_frames(path: &Path) -> Option<usize> {
     use image::AnimationDecoder;
+    if !fs::metadata(path).ok()?.is_file() {
+        return None;
+    }
     let reader = image::ImageReader::open(path)
         .ok()?
         .with_guessed_format()
@@ -449,7 +459,7 @@ fn no_panic<T>(
 /// be read.
 fn exr_channel_names(path: &Path) -> Option<Vec<String>> {
     no_panic(|| {
-        let file = File::open(path).map_err(|e| e.to_string())?;
+        let file = open_regular(path).map_err(|e| e.to_string())?;
         let meta = exr::meta::MetaData::read_from_buffered(BufReader::new(file), false)
             .map_err(|e| e.to_string())?;
         let header = meta.headers.iter().find(|h| !h.deep).ok_or("")?;
@@ -477,7 +487,7 @@ fn read_few_channel_exr(path: &Path) -> std::result::Result<FewChannelExr, Strin
         e => e.to_string(),
     };
     let open = || {
-        File::open(path)
+        open_regular(path)
             .map(BufReader::new)
             .map_err(|e| e.to_string())
     };
@@ -593,17 +603,18 @@ fn decode_any(path: &Path) -> Result<Decoded> {
             reason: "it is a directory, not an image file".into(),
         });
     }
-    let reader = image::ImageReader::open(path).map_err(io_err)?;
-    let reader = reader.with_guessed_format().map_err(io_err)?;
     let meta = fs::metadata(path).ok();
     if meta.as_ref().is_some_and(|m| !m.is_file()) {
         // A device (`/dev/zero`), a pipe, a socket: no length to check against and
-        // perhaps no end.
+        // perhaps no end. Checked before opening: opening a named pipe blocks until
+        // something writes to it.
         return Err(Error::BadImage {
             path: path.to_path_buf(),
             reason: "it is not a regular file (a device or a pipe); give an image file".into(),
         });
     }
+    let reader = image::ImageReader::open(path).map_err(io_err)?;
+    let reader = reader.with_guessed_format().map_err(io_err)?;
     let len = meta.map(|m| m.len());
     if len == Some(0) {
         return Err(Error::BadImage {
@@ -706,6 +717,22 @@ fn decode_any(path: &Path) -> Result<Decoded> {
     Err(bad(reason))
 }
 
+/// Opens `path` for reading if it is a regular file. The type is checked before the
+/// open, since opening a named pipe blocks until something writes to it; a device such as
+/// `/dev/zero` could fill the memory. The error says what the path is instead.
+pub fn open_regular(path: &Path) -> std::io::Result<File> {
+    let meta = fs::metadata(path)?;
+    if meta.is_dir() {
+        return Err(std::io::Error::other("it is a directory, not a file"));
+    }
+    if !meta.is_file() {
+        return Err(std::io::Error::other(
+            "it is not a regular file (a device or a pipe); give a file",
+        ));
+    }
+    File::open(path)
+}
+
 /// Reads the whole file at `path`, refusing files of more than `max` bytes and anything
 /// that is not a regular file (a device such as `/dev/zero` or a pipe could fill the
 /// memory). Errors are [`Error::Io`] naming `path`; `what` names the input in the
@@ -716,15 +743,8 @@ pub fn read_file_capped(path: &Path, max: u64, what: &str) -> Result<Vec<u8>> {
         path: path.to_path_buf(),
         source,
     };
-    let file = File::open(path).map_err(io)?;
+    let file = open_regular(path).map_err(io)?;
     let meta = file.metadata().map_err(io)?;
-    if !meta.is_file() {
-        return Err(io(std::io::Error::other(if meta.is_dir() {
-            "it is a directory, not a file"
-        } else {
-            "it is not a regular file (a device or a pipe); give a file"
-        })));
-    }
     let too_large = |n: u64| {
         io(std::io::Error::other(format!(
             "{} MiB; texsyn reads {what} of at most {} MiB",

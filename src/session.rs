@@ -444,7 +444,7 @@ impl Texture {
 /// Whether `path` starts with the analysis-file magic (a missing file is an error).
 pub fn is_analysis_file(path: &Path) -> Result<bool> {
     use std::io::Read;
-    let mut f = std::fs::File::open(path).map_err(|source| Error::Io {
+    let mut f = crate::image_io::open_regular(path).map_err(|source| Error::Io {
         path: path.to_path_buf(),
         source,
     })?;

@@ -969,6 +969,41 @@ fn controls_end_to_end_and_their_bad_inputs() {
         1,
         "does not match",
     );
+    // A file analysed in colour space synthesizes without repeating --appearance (the
+    // flag's default must not be taken for a mismatch), and with a matching one.
+    ok(
+        &dir,
+        &["analyze", GRAVEL, "--appearance", "color", "-o", "c.tsa"],
+    );
+    ok(&dir, &["synth", "c.tsa", "-o", "c.png", "--size", "24"]);
+    ok(
+        &dir,
+        &[
+            "synth",
+            "c.tsa",
+            "-o",
+            "c.png",
+            "--size",
+            "24",
+            "--appearance",
+            "color",
+        ],
+    );
+    fails(
+        &dir,
+        &[
+            "synth",
+            "c.tsa",
+            "-o",
+            "c2.png",
+            "--size",
+            "24",
+            "--appearance",
+            "neighborhood",
+        ],
+        1,
+        "does not match",
+    );
     fails(
         &dir,
         &[
@@ -1364,6 +1399,9 @@ fn audit_findings_fail_cleanly() {
             })
             .collect()
     };
+    image::RgbImage::from_pixel(20, 12, image::Rgb([128, 128, 0]))
+        .save(dir.path("flow20.png"))
+        .unwrap();
     let cases = [
         // A huge advection is refused before anything of its size is allocated.
         (
@@ -1385,6 +1423,12 @@ fn audit_findings_fail_cleanly() {
         ),
         ("advect G --flow uniform:1,0 --frames 2 -o .", 1, "by name"),
         ("advect G --flow image: --frames 2 -o fr", 2, "image:FILE"),
+        // A velocity map of another size than the output says which option to change.
+        (
+            "advect G --flow image:flow20.png --frames 2 --size 16 -o fr",
+            1,
+            "(--size 20x12)",
+        ),
         // bench checks a preset field before any work.
         (
             "bench G --sizes 16 --runs 1 --warmup 0 --field scale:0",

@@ -167,7 +167,13 @@ fn float_exemplar_is_clamped_or_refused() {
         image::Rgba([x as f32 * 3.0, 0.5, 0.5, 1.0])
     }));
     let err = exemplar_from_image(&hdr).unwrap_err().to_string();
-    assert!(err.contains("tone-map"), "{err}");
+    assert!(err.contains("tone-map") && err.contains("up to 45"), "{err}");
+    // Negative samples: the message gives their range, not their magnitude.
+    let neg = DynamicImage::ImageRgb32F(ImageBuffer::from_fn(16, 16, |x, _| {
+        Rgb([-0.5 - x as f32 * 0.01, -0.5, -0.5])
+    }));
+    let err = exemplar_from_image(&neg).unwrap_err().to_string();
+    assert!(err.contains("down to -0.65"), "{err}");
 }
 
 #[test]
@@ -936,6 +942,25 @@ fn truncated_jpegs_devices_and_analysis_files_are_refused() {
             }
             other => panic!("{other:?}"),
         }
+    }
+
+    // So is a named pipe with no writer, before it is opened (opening it would block
+    // until something writes to it): as an image, a file read whole, an analysis file.
+    let fifo = dir.join("pipe.png");
+    let made = std::process::Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .is_ok_and(|s| s.success());
+    if made {
+        let reason = bad_image(load_exemplar(&fifo), &fifo);
+        assert!(reason.contains("not a regular file"), "{reason}");
+        let e = texsyn::image_io::read_file_capped(&fifo, 1 << 20, "meshes").unwrap_err();
+        assert!(e.to_string().contains("not a regular file"), "{e}");
+        let e = texsyn::Analysis::load(&fifo).unwrap_err();
+        assert!(e.to_string().contains("not a regular file"), "{e}");
+        assert!(texsyn::session::is_analysis_file(&fifo).is_err());
+    } else {
+        eprintln!("no mkfifo here: the named-pipe case is not tested");
     }
 
     // An analysis file given where an image belongs says what it is.

@@ -246,6 +246,22 @@ fn open_meshes_and_bad_surface_inputs() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("atlas size"), "{e}");
+    // A mesh modelled at a tiny scale (1e-15 units across: its triangle areas underflow
+    // in f32) is refused with what to do; one a micrometre across still works.
+    let mut tiny = Mesh::plane(1e-15, 1e-15, 2);
+    tiny.validate_and_repair().unwrap();
+    let opts64 = SurfaceOptions {
+        atlas: AtlasOptions {
+            size: 64,
+            ..AtlasOptions::default()
+        },
+        ..SurfaceOptions::default()
+    };
+    let e = pipeline::prepare(&tiny, 5, &opts64).unwrap_err().to_string();
+    assert!(e.contains("scale it up"), "{e}");
+    let mut small = Mesh::plane(1e-6, 1e-6, 2);
+    small.validate_and_repair().unwrap();
+    pipeline::prepare(&small, 5, &opts64).unwrap();
     for s in [1e6f32, 0.0, -1.0, f32::NAN] {
         let opts = SurfaceOptions {
             atlas: AtlasOptions {

@@ -348,7 +348,7 @@ impl Analysis {
             path: path.to_path_buf(),
             source,
         };
-        let file = std::fs::File::open(path).map_err(io)?;
+        let file = crate::image_io::open_regular(path).map_err(io)?;
         if let Some(a) = Self::stream(file) {
             return Ok(a);
         }
@@ -399,7 +399,7 @@ impl Analysis {
     /// it, as [`Analysis::save`] and `texsyn analyze` do) is safe: the mapping keeps the
     /// old one.
     pub unsafe fn load_mapped(path: &Path) -> Result<Analysis> {
-        let file = std::fs::File::open(path).map_err(|source| Error::Io {
+        let file = crate::image_io::open_regular(path).map_err(|source| Error::Io {
             path: path.to_path_buf(),
             source,
         })?;

@@ -107,15 +107,18 @@ pub struct AppearanceArgs {
 
     /// Appearance vector: neighborhood (5x5 neighbourhoods reduced to 8D, the paper's
     /// appearance space) or color (the pixel colour alone, for comparison; same runtime)
-    #[arg(long, value_name = "SPACE", default_value = "neighborhood", value_parser = parse_appearance)]
-    pub appearance: texsyn::analysis::AppearanceSpace,
+    /// [default: neighborhood; with an analysis file, the file's]
+    #[arg(long, value_name = "SPACE", value_parser = parse_appearance)]
+    pub appearance: Option<texsyn::analysis::AppearanceSpace>,
 }
 
 impl AppearanceArgs {
     /// Loads the mask (if any) and sets the appearance options. Errors (unreadable mask)
     /// come before any analysis.
     pub fn apply(&self, options: &mut texsyn::AnalysisOptions) -> CliResult<()> {
-        options.appearance = self.appearance;
+        if let Some(a) = self.appearance {
+            options.appearance = a;
+        }
         if let Some(m) = self.feature_mode {
             options.feature_mode = m;
         }

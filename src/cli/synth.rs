@@ -457,7 +457,7 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
         check_save_extension(&a.output)?;
         // Read now (cheap) so that a missing map does not cost an analysis; it is
         // decoded and checked against the exemplar's size later.
-        std::fs::File::open(&a.input)
+        texsyn::image_io::open_regular(&a.input)
             .map_err(|e| fail(format!("--also: cannot read {}: {e}", a.input.display())))?;
     }
     let [width, height] = args.size;
@@ -497,7 +497,11 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
                     args.exemplar.display()
                 )));
             }
-            if args.appearance.appearance != a.appearance {
+            if args
+                .appearance
+                .appearance
+                .is_some_and(|given| given != a.appearance)
+            {
                 return Err(fail(format!(
                     "--appearance does not match the analysis file {}; drop it or re-run `texsyn analyze --appearance ...`",
                     args.exemplar.display()

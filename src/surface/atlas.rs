@@ -367,22 +367,44 @@ type Packed = (Vec<xatlas_rs::Vertex>, Vec<u32>, Vec<u32>, u32, f64);
 /// `gutter` texels between charts.
 #[cfg(feature = "xatlas")]
 fn generate(mesh: &Mesh, opts: &AtlasOptions) -> Result<Atlas> {
-    let area = mesh.surface_area();
-    if area.is_nan() || area <= 0.0 || area.is_infinite() {
+    // xatlas works in the mesh's units; normalize so its tolerances see a unit-sized
+    // mesh whatever the modelling scale (uvs do not depend on the scale). The area is
+    // measured after normalizing, in f64: a valid mesh modelled at 1e-15 units has
+    // triangle areas that underflow in f32.
+    let (lo, hi) = mesh.bounding_box();
+    let unit = 1.0 / (hi - lo).as_dvec3().length().max(f64::MIN_POSITIVE);
+    let normalized: Vec<glam::DVec3> = mesh
+        .positions
+        .iter()
+        .map(|p| (p.as_dvec3() - lo.as_dvec3()) * unit)
+        .collect();
+    let area: f64 = mesh
+        .triangles
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.map(|i| normalized[i as usize]);
+            0.5 * (b - a).cross(c - a).length()
+        })
+        .sum();
+    if !area.is_finite() || area <= 0.0 {
         return Err(Error::InvalidParameter(
-            "the mesh has no surface area to build an atlas on".into(),
+            "the mesh has no surface area to build an atlas on (every triangle is \
+             degenerate, or its coordinates are not finite)"
+                .into(),
         ));
     }
-    // xatlas works in the mesh's units; normalize so its tolerances see a unit-sized
-    // mesh whatever the modelling scale (uvs do not depend on the scale).
-    let (lo, hi) = mesh.bounding_box();
-    let unit = 1.0 / (hi - lo).length().max(f32::MIN_POSITIVE);
+    // The f32 factor the packing always used, unless the extent underflows in f32.
+    let extent32 = (hi - lo).length();
+    let unit32 = if extent32.is_normal() {
+        1.0 / extent32
+    } else {
+        unit as f32
+    };
     let positions: Vec<f32> = mesh
         .positions
         .iter()
-        .flat_map(|p| ((*p - lo) * unit).to_array())
+        .flat_map(|p| ((*p - lo) * unit32).to_array())
         .collect();
-    let area = area * (unit as f64).powi(2);
     let normals: Vec<f32> = mesh.normals.iter().flat_map(|p| p.to_array()).collect();
     let indices: Vec<u32> = mesh.triangles.iter().flatten().copied().collect();
     let bytes = |v: &[f32]| -> Vec<u8> { bytemuck::cast_slice(v).to_vec() };

@@ -57,12 +57,27 @@ pub struct PrepareTimings {
     pub maps: Duration,
 }
 
+/// The smallest bounding-box diagonal [`prepare`] takes, in world units.
+pub const MIN_MESH_EXTENT: f64 = 1e-6;
+
 /// Atlas, tangent field and the maps of `levels` pyramid levels.
 pub fn prepare(mesh: &Mesh, levels: usize, opts: &SurfaceOptions) -> Result<PreparedSurface> {
     // An analysis has at most one level per halving of a 2^16-texel side.
     if !(1..=16).contains(&levels) {
         return Err(Error::InvalidParameter(format!(
             "{levels} pyramid levels: an analysis has 1 to 16"
+        )));
+    }
+    // A mesh modelled at a tiny scale: its triangle areas and the tangent frames'
+    // lengths underflow in 32-bit floats long before it is degenerate (measured: a plane
+    // scaled by 1e-15 ended in "texel size 0"). Refused with what to do.
+    let (lo, hi) = mesh.bounding_box();
+    let extent = (hi - lo).as_dvec3().length();
+    if extent.is_finite() && extent > 0.0 && extent < MIN_MESH_EXTENT {
+        return Err(Error::InvalidParameter(format!(
+            "the mesh is {extent:.3e} units across, too small to work on in 32-bit floats \
+             (at least {MIN_MESH_EXTENT:e}): scale it up, e.g. export it in millimetres \
+             instead of kilometres"
         )));
     }
     let t = Instant::now();
