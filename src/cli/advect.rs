@@ -128,7 +128,8 @@ pub struct AdvectArgs {
     pub correct_coherent: bool,
 
     /// Score the similarity-set candidates on every N-th correction of a pixel on the
-    /// most corrected level (the second-finest, or the finest with --advect-finest),
+    /// most corrected level (the second-finest, the finest with --advect-finest, or the
+    /// advected level above the re-synthesized ones with --resynthesize),
     /// 1..=16 (1: every correction, as synthesis does by default; 2 is about an eighth
     /// faster per frame for energies 1-2% higher); with --passes above 1, on every N-th
     /// pass of a frame
@@ -579,7 +580,7 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
     ));
     ui.info(format!(
         "cost per frame (GPU, synchronized, median{}): {} = {:.0}% of a whole synthesis ({}), \
-         {:.0}% of a whole synthesis with frame 0's settings ({}: anisometric, finest level \
+         {:.0}% of a whole synthesis with the frames' plan ({}: anisometric, finest level \
          corrected, no seam blending)",
         if args.per_pass {
             ", one submission per dispatch"

@@ -196,10 +196,13 @@ impl Advection {
         // Advected coordinates have several times the seams of a synthesis; blending
         // their colours blurred the texture (vortex test: sharpness 0.65x of frame 0).
         p.seam_blend = false;
-        // Every frame corrects the finest level, so frame 0 does too (synthesis leaves it
+        // The plan keeps a corrected finest level: with `AdvectOptions::upsample_finest =
+        // false` every frame corrects it, and frame 0 does too (synthesis leaves it
         // uncorrected by default, which pays only with seam blending: without it, the
-        // correction lowers frame 0's energy, 0.00198 against 0.00214 on gravel), and its
-        // region keeps the margin of a corrected level, which the flow carries into view.
+        // correction lowers frame 0's energy, 0.00198 against 0.00214 on gravel); either
+        // way its region keeps the margin of a corrected level, which the flow carries
+        // into view. With the finest level upsampled (the default), frame 0 and the
+        // frames leave out its corrections (`SynthPlan::advect_first_schedule`).
         p.finest_passes = p.finest_passes.max(1);
         // The advected levels' subpass schedule over the frames was measured with every
         // level's passes: no smaller default at the second-finest level (see

@@ -227,7 +227,8 @@ pub struct AdvectOptions {
     pub levels: usize,
     /// Make the finest level each frame by upsampling the advected second-finest level,
     /// without correcting it, as a synthesis makes its finest level by default; the
-    /// second-finest level is then corrected with whole passes every frame. Off: the
+    /// second-finest level (or, with [`Self::resynthesize`], the advected level above the
+    /// re-synthesized ones) is then corrected with whole passes every frame. Off: the
     /// finest level is advected in place and corrected too (the paper's scheme; half of
     /// its subpasses per frame with one pass), and frame 0 corrects it. On by default
     /// (forty-fifth session): a 512x512 frame costs a third of a whole synthesis

@@ -690,7 +690,8 @@ impl Dispatch {
 
 /// The level whose quarter-pixel tables a schedule reads: the finest level with a
 /// dispatch that [`Dispatch::reads_quarter_tables`] (an advection frame's most
-/// corrected level: the finest, or the second-finest when the finest is upsampled).
+/// corrected level: the finest, or the second-finest when the finest is upsampled, or
+/// the advected level above the re-synthesized ones).
 pub fn quarter_tables_level(schedule: &[Dispatch], analysis: &Analysis) -> Option<usize> {
     schedule
         .iter()
@@ -917,7 +918,8 @@ impl SynthPlan {
                             d.params.coherent_skip = options.skip_coherent as u32;
                             // With one pass, the most corrected level's similarity sets
                             // follow the frames' `sets_every` over the frames (with
-                            // more, the passes do), at the same cost every frame. All
+                            // more, the passes do), at the same cost every frame when
+                            // `sets_every` divides the subpasses per frame. All
                             // four subpasses per frame: subpass s scores them on frames
                             // with (frame + s) a multiple of `sets_every`. Two: of a
                             // frame's two one scores them, and the two swap every other
