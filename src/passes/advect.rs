@@ -364,7 +364,7 @@ impl AdvectOptions {
                 self.resynthesize
             )));
         }
-        if self.levels < self.resynthesize + 2 {
+        if self.resynthesize > 0 && self.levels < self.resynthesize + 2 {
             return Err(Error::InvalidParameter(format!(
                 "advection of {} levels with {} re-synthesized below the finest: the frames \
                  need at least one advected level, so use at least {} levels (--levels) or \
