@@ -1423,6 +1423,13 @@ fn audit_findings_fail_cleanly() {
         ),
         ("advect G --flow uniform:1,0 --frames 2 -o .", 1, "by name"),
         ("advect G --flow image: --frames 2 -o fr", 2, "image:FILE"),
+        // `-` is standard output for synth only: not a file or folder named `-`.
+        ("analyze G -o -", 2, "only for synth"),
+        (
+            "advect G --flow vortex --frames 2 -o -",
+            2,
+            "only for synth",
+        ),
         // A velocity map of another size than the output says which option to change.
         (
             "advect G --flow image:flow20.png --frames 2 --size 16 -o fr",

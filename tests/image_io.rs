@@ -167,7 +167,10 @@ fn float_exemplar_is_clamped_or_refused() {
         image::Rgba([x as f32 * 3.0, 0.5, 0.5, 1.0])
     }));
     let err = exemplar_from_image(&hdr).unwrap_err().to_string();
-    assert!(err.contains("tone-map") && err.contains("up to 45"), "{err}");
+    assert!(
+        err.contains("tone-map") && err.contains("up to 45"),
+        "{err}"
+    );
     // Negative samples: the message gives their range, not their magnitude.
     let neg = DynamicImage::ImageRgb32F(ImageBuffer::from_fn(16, 16, |x, _| {
         Rgb([-0.5 - x as f32 * 0.01, -0.5, -0.5])

@@ -257,7 +257,9 @@ fn open_meshes_and_bad_surface_inputs() {
         },
         ..SurfaceOptions::default()
     };
-    let e = pipeline::prepare(&tiny, 5, &opts64).unwrap_err().to_string();
+    let e = pipeline::prepare(&tiny, 5, &opts64)
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("scale it up"), "{e}");
     let mut small = Mesh::plane(1e-6, 1e-6, 2);
     small.validate_and_repair().unwrap();

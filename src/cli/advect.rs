@@ -43,7 +43,7 @@ pub struct AdvectArgs {
     pub frames: u32,
 
     /// Output: a folder for PNG frames, or an animation: OUT.png (animated PNG) or OUT.gif
-    #[arg(short, long, value_name = "DIR|OUT.png|OUT.gif")]
+    #[arg(short, long, value_name = "DIR|OUT.png|OUT.gif", value_parser = super::parse_named_output)]
     pub output: PathBuf,
 
     /// Output size (2D; with --mesh the atlas size is --atlas-size)

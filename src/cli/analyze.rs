@@ -25,7 +25,7 @@ pub struct AnalyzeArgs {
     pub exemplar: PathBuf,
 
     /// Analysis file to write (written atomically, only once the analysis succeeded)
-    #[arg(short, long, value_name = "FILE")]
+    #[arg(short, long, value_name = "FILE", value_parser = super::parse_named_output)]
     pub output: PathBuf,
 
     /// Similarity-set size, including the pixel itself (1..=8)

@@ -455,6 +455,19 @@ pub fn check_parent_dir(path: &Path, dir: &Path) -> CliResult<()> {
     }))
 }
 
+/// An output that must be a named file or folder: `-` (standard output for `synth`'s
+/// image) is refused rather than taken for a file named `-`.
+pub fn parse_named_output(s: &str) -> Result<PathBuf, String> {
+    if s == "-" {
+        return Err(
+            "`-` (standard output) is only for synth's image; give a file or folder \
+                    name (./- for one named `-`)"
+                .into(),
+        );
+    }
+    Ok(PathBuf::from(s))
+}
+
 pub fn check_output_dir(path: &Path) -> CliResult<()> {
     if path.file_name().is_none() {
         return Err(fail(format!(
