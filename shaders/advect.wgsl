@@ -42,7 +42,12 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         let vc = velocity[u32((ws.y / 2) * ws.x + ws.x / 2)];
         k = (vc + vec2<i32>(unit >> 1u)) >> vec2<u32>(10u + params.steps);
     }
-    let src = clamp(q - k, vec2<i32>(0), params.size - vec2<i32>(1));
+    // The pixel k level pixels upstream: clamped into the region, or wrapped around one
+    // period of a periodic output (k may be many pixels on the finest levels).
+    var src = clamp(q - k, vec2<i32>(0), params.size - vec2<i32>(1));
+    if (PERIODIC) {
+        src = vec2<i32>(wrap(q.x - k.x, params.size.x), wrap(q.y - k.y, params.size.y));
+    }
     let prev = coords[params.coord_base + u32(src.y * params.size.x + src.x)];
     let j = jac_at(i);
     // J (V - k) in 1/2^20 exemplar pixel to 1/256, rounded with this frame's offset (a

@@ -10,7 +10,7 @@
 //! are seams, not distortion) the pixel is upsampled again from the coarser level; then
 //! the usual correction passes run.
 
-use super::common::{fit_coord, region_index, scaled_jd, PassParams};
+use super::common::{fit_coord, region_index, scaled_jd, wrap, PassParams};
 use super::fill::in_chart;
 use crate::error::{Error, Result};
 
@@ -103,8 +103,14 @@ pub fn advect(p: &PassParams, coords: &mut [[i32; 2]], jac: &[[i32; 4]], velocit
         for x in 0..p.size[0] {
             let i = p.coord_base as usize + (y * p.size[0] + x) as usize;
             let vq = velocity_at(p, velocity, [p.origin[0] + x, p.origin[1] + y]);
-            let sx = (x - k[0]).clamp(0, p.size[0] - 1);
-            let sy = (y - k[1]).clamp(0, p.size[1] - 1);
+            let (sx, sy) = if p.periodic != 0 {
+                (wrap(x - k[0], p.size[0]), wrap(y - k[1], p.size[1]))
+            } else {
+                (
+                    (x - k[0]).clamp(0, p.size[0] - 1),
+                    (y - k[1]).clamp(0, p.size[1] - 1),
+                )
+            };
             let prev = coords[p.coord_base as usize + (sy * p.size[0] + sx) as usize];
             let j = jac[i];
             let d = p.dither as i32;
