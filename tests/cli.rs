@@ -1464,6 +1464,37 @@ fn audit_findings_fail_cleanly() {
         json[start..end].split(',').map(str::to_string).collect()
     };
     assert_eq!(warped("all")[1..], warped("from1")[..]);
+    // The energies are labelled with the frames' own numbers, every K from frame 0.
+    let json = ok(
+        &dir,
+        &[
+            "eval",
+            GRAVEL,
+            "from1",
+            "--flow",
+            "gusts:3,0.5",
+            "--energy-every",
+            "2",
+        ],
+    );
+    assert!(
+        json.contains("\"energy\":[[1,") && json.contains("],[2,") && json.contains("],[3,"),
+        "{json}"
+    );
+    // Numbers past five digits sort as numbers, not as text (frame_100000 after 99999).
+    std::fs::create_dir(dir.path("big")).unwrap();
+    for (i, n) in [(1, 99998u32), (2, 99999), (3, 100000)] {
+        std::fs::copy(
+            dir.path("all").join(format!("frame_{i:05}.png")),
+            dir.path("big").join(format!("frame_{n:05}.png")),
+        )
+        .unwrap();
+    }
+    let json = ok(&dir, &["eval", GRAVEL, "big", "--flow", "gusts:3,0.5"]);
+    assert!(
+        json.contains("[99998,") && json.contains("[100000,"),
+        "{json}"
+    );
 }
 
 /// A reader that goes away (`texsyn ... 2>&1 | head -1`) loses the messages, not the

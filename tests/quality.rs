@@ -589,3 +589,31 @@ fn timing_512_vs_128() {
         fast / exact
     );
 }
+
+/// The temporal figures: a flat exemplar has no sharpness to compare with (NaN, not a
+/// huge number), a sequence that starts later is labelled with its own frame numbers,
+/// and frames that change channel count say so.
+#[test]
+fn temporal_figures_edge_cases() {
+    use texsyn::quality::TemporalFigures;
+    let flat = FloatImage::new(16, 16, 1, vec![0.5; 256]).unwrap();
+    let frame = value_noise(16, 16, 1, 3);
+    let mut f = TemporalFigures::new(&flat, 1);
+    f.push(frame.clone(), &[]).unwrap();
+    let r = f.finish().unwrap();
+    assert!(r.sharpness.iter().all(|s| s.is_nan()), "{:?}", r.sharpness);
+
+    let ex = value_noise(24, 24, 1, 4);
+    let mut f = TemporalFigures::new(&ex, 2).starting_at(3);
+    for _ in 0..3 {
+        f.push(frame.clone(), &[]).unwrap();
+    }
+    let r = f.finish().unwrap();
+    let labels: Vec<usize> = r.energy.iter().map(|e| e.0).collect();
+    assert_eq!(labels, vec![3, 4, 5]);
+
+    let mut f = TemporalFigures::new(&ex, 1);
+    f.push(frame.clone(), &[]).unwrap();
+    let e = f.push(frame.to_rgb(), &[]).unwrap_err().to_string();
+    assert!(e.contains("all grey or all colour"), "{e}");
+}

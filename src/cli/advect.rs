@@ -106,7 +106,8 @@ pub struct AdvectArgs {
           allow_hyphen_values = true, value_parser = super::parse_seed)]
     pub seed: u32,
 
-    /// Compute texture energy every K frames (it is the costly figure; 0: first and last)
+    /// Compute texture energy (of 5x5 windows, as `texsyn eval --flow`) every K frames (it
+    /// is the costly figure; 0: first and last)
     #[arg(long, value_name = "K", default_value_t = 0)]
     pub energy_every: usize,
 
@@ -391,16 +392,17 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
             texsyn::analysis::analyze(&ex, &options, ui.analysis_progress())?
         }
     };
-    let exemplar_image = FloatImage::new(
-        analysis.width,
-        analysis.height,
-        1,
-        analysis
-            .colors
-            .iter()
-            .map(|c| c[0] as f32 / 255.0)
-            .collect(),
-    )?;
+    // The temporal figures see what `texsyn eval --flow` sees in the written frames: the
+    // colours (grey where the exemplar is grey, so that grey figures stay as they were).
+    let grey = analysis.colors.iter().all(|c| c[0] == c[1] && c[1] == c[2]);
+    let to_float = move |w: u32, h: u32, rgba: &[[u8; 4]]| -> texsyn::Result<FloatImage> {
+        if grey {
+            FloatImage::new(w, h, 1, rgba.iter().map(|p| p[0] as f32 / 255.0).collect())
+        } else {
+            FloatImage::from_rgba8(w, h, rgba)
+        }
+    };
+    let exemplar_image = to_float(analysis.width, analysis.height, &analysis.colors)?;
     let levels = analysis.levels.len();
     let synthesizer = Arc::new(GpuSynthesizer::new(&ctx, Arc::new(analysis))?);
 
@@ -480,12 +482,7 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
      -> CliResult<()> {
         let rgba = adv.read_rgba8(&ctx)?;
         figures.push(
-            FloatImage::new(
-                w,
-                h,
-                1,
-                rgba.chunks(4).map(|p| p[0] as f32 / 255.0).collect(),
-            )?,
+            to_float(w, h, bytemuck::cast_slice::<u8, [u8; 4]>(&rgba))?,
             displacement,
         )?;
         if !index.is_multiple_of(args.every) {

@@ -74,7 +74,9 @@ pub struct EvalArgs {
     #[arg(long, default_value_t = 1.0, requires = "flow")]
     pub dt: f32,
 
-    /// With --flow: texture energy every K frames (and the last)
+    /// With --flow: texture energy (of 5x5 windows, as `texsyn advect` prints it; plain
+    /// eval's is of 7x7) on the first frame, every K-th from frame 0 and the last; 0: the
+    /// first and the last only
     #[arg(long, value_name = "K", default_value_t = 10, requires = "flow")]
     pub energy_every: usize,
 
@@ -299,7 +301,13 @@ fn temporal(
                 .is_some_and(|n| n.starts_with("frame_") && n.ends_with(".png"))
         })
         .collect();
-    paths.sort();
+    // By frame number: `advect` pads to 5 digits, so frame 100000 sorts before 99999 as
+    // text; names without a number come first and fail the consecutive check below.
+    let index = |p: &PathBuf| -> Option<u64> {
+        let n = p.file_name()?.to_str()?;
+        n.strip_prefix("frame_")?.strip_suffix(".png")?.parse().ok()
+    };
+    paths.sort_by_key(|p| (index(p), p.clone()));
     if paths.len() < 2 {
         return Err(fail(format!(
             "{}: needs at least two frame_*.png files",
@@ -308,10 +316,6 @@ fn temporal(
     }
     // The flow is applied frame by frame: a gap (advect --every K) would compare frames
     // K steps apart as if they were 1.
-    let index = |p: &PathBuf| -> Option<u64> {
-        let n = p.file_name()?.to_str()?;
-        n.strip_prefix("frame_")?.strip_suffix(".png")?.parse().ok()
-    };
     for pair in paths.windows(2) {
         match (index(&pair[0]), index(&pair[1])) {
             (Some(a), Some(b)) if b == a + 1 => {}
@@ -330,8 +334,14 @@ fn temporal(
     let (w, h) = (first.width, first.height);
     // A field of another size than the frames is an error, not a silently ignored flow.
     flow.sample(w, h, 0.0)?;
-    let mut figures =
-        quality::TemporalFigures::new(&FloatImage::from_exemplar(exemplar), args.energy_every);
+    let mut figures = quality::TemporalFigures::new(
+        &FloatImage::from_exemplar(exemplar),
+        match args.energy_every {
+            0 => usize::MAX,
+            k => k,
+        },
+    )
+    .starting_at(index(&paths[0]).unwrap_or(0) as usize);
     figures.push(first, &[])?;
     for path in paths.iter().skip(1) {
         // The frame's own number is its time (a folder may start after frame 0).
