@@ -24,9 +24,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let v = input[i];
-    var w = vec2<f32>(0.0);
-    if (finite(v.x) && finite(v.y)) {
-        w = clamp(v * vp.dt, vec2<f32>(-64.0), vec2<f32>(64.0));
-    }
+    // Each non-finite component counts as 0 on its own, as quantize_velocity does.
+    let c = clamp(v * vp.dt, vec2<f32>(-64.0), vec2<f32>(64.0));
+    let w = select(vec2<f32>(0.0), c, vec2<bool>(finite(v.x), finite(v.y)));
     output[i] = vec2<i32>(round(w * 1024.0));
 }

@@ -204,12 +204,24 @@ fn advection_frames_gpu_match_cpu() {
     .unwrap();
     let mut a1 = Advection::new(ctx(), synth.clone(), &params, opts).unwrap();
     let mut a2 = Advection::new(ctx(), synth, &params, opts).unwrap();
-    a1.step(ctx(), &v, 2.0).unwrap();
+    // A non-finite component counts as 0 on its own, on both paths (the GPU zeroed the
+    // whole velocity): the host gets the zeros, the buffer NaN and infinity.
+    let (mut host, mut gpu) = (v.clone(), v.clone());
+    let bad = [f32::NAN, f32::INFINITY, f32::NEG_INFINITY];
+    for i in (0..v.len()).step_by(7) {
+        host[i][i % 2] = 0.0;
+        gpu[i][i % 2] = bad[i % 3];
+        assert_eq!(
+            quantize_velocity(gpu[i], 2.0),
+            quantize_velocity(host[i], 2.0)
+        );
+    }
+    a1.step(ctx(), &host, 2.0).unwrap();
     let buffer = wgpu::util::DeviceExt::create_buffer_init(
         &ctx().device,
         &wgpu::util::BufferInitDescriptor {
             label: None,
-            contents: bytemuck::cast_slice(&v),
+            contents: bytemuck::cast_slice(&gpu),
             usage: wgpu::BufferUsages::STORAGE,
         },
     );
@@ -773,6 +785,10 @@ fn bad_velocities_and_time_steps() {
     })
     .unwrap();
     adv.step(ctx(), &good, 1.0).unwrap();
+    // Reading back through another context is an error, not a panic inside wgpu.
+    let other = GpuContext::headless().unwrap();
+    assert!(err(adv.read_rgba8(&other).map(|_| ())).contains("another GpuContext"));
+    assert!(err(adv.read_coords(&other).map(|_| ())).contains("another GpuContext"));
     ctx().take_uncaptured_errors().unwrap();
 }
 

@@ -298,6 +298,30 @@ fn progress_reports_and_level_by_level_synthesis_gives_the_same_bytes() {
     assert_eq!(split.synthesis.colors, plain.synthesis.colors);
     assert_eq!(split.synthesis.coords, plain.synthesis.coords);
     assert!(rx.try_iter().next().is_none());
+
+    // The callback may call into its synthesizer: synthesize (that nested synthesis
+    // skips its own reports) and take itself off. Both deadlocked while the callback ran
+    // under the lock that set_progress takes.
+    let sy = session.synthesizer().clone();
+    let weak = std::sync::Arc::downgrade(&sy);
+    let (ctx2, params2) = (session.context().clone(), session.params().clone());
+    let (tx, rx) = std::sync::mpsc::channel();
+    sy.set_progress(Some(Box::new(move |done, _| {
+        if let Some(s) = weak.upgrade() {
+            if done == 1 {
+                let nested = s.synthesize_to_host(&ctx2, &params2).unwrap();
+                tx.send(nested.colors).unwrap();
+                s.set_progress(None);
+            }
+        }
+    })));
+    let outer = sy
+        .synthesize_to_host(session.context(), session.params())
+        .unwrap();
+    let nested = rx.try_recv().expect("the callback ran a synthesis");
+    assert_eq!(nested, outer.colors);
+    assert_eq!(outer.colors, plain.synthesis.colors);
+
     ctx.take_uncaptured_errors().expect("no wgpu errors");
 }
 

@@ -24,7 +24,8 @@ use crate::passes::advect::{MAX_SPEED, VELOCITY_FRAC};
 use crate::passes::plan::{Dispatch, PassKind, SynthPlan};
 use crate::passes::SynthParams;
 
-/// Host-side quantization of one velocity, as `shaders/velocity.wgsl` does on the GPU.
+/// Host-side quantization of one velocity, as `shaders/velocity.wgsl` does on the GPU:
+/// scaled by `dt`, clamped to [`MAX_SPEED`] per component, a non-finite component 0.
 pub fn quantize_velocity(v: [f32; 2], dt: f32) -> [i32; 2] {
     let s = (1u32 << VELOCITY_FRAC) as f32;
     v.map(|c| {
@@ -312,7 +313,8 @@ impl Advection {
     }
 
     /// One frame from host velocities (one per output pixel, row-major, pixels per unit
-    /// time), submitted to the queue. Errors on a wrong count or a non-finite value.
+    /// time), submitted to the queue. Errors on a wrong count, a non-finite value or a
+    /// `dt` that is not positive and finite (skip the call for a paused frame).
     pub fn step(&mut self, ctx: &GpuContext, velocity: &[[f32; 2]], dt: f32) -> Result<()> {
         self.upload_velocity(ctx, velocity, dt)?;
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
@@ -391,10 +393,13 @@ impl Advection {
     /// pixels per unit of time) per output pixel, row-major with a stride of the output's
     /// width; only its first `width * height` entries are read. It must come from the
     /// same device and have usage STORAGE, and be unmapped when the encoder is submitted.
-    /// Non-finite velocities count as 0. Every check (size, usage, a destroyed, invalid or
-    /// foreign buffer) runs before anything is recorded, so an error leaves the encoder
-    /// usable; a buffer still mapped is found only by the caller's submit (wgpu tells no
-    /// earlier).
+    /// Non-finite components count as 0. Every check (size, usage, a destroyed or invalid
+    /// buffer, or one from another device of the same `wgpu::Instance`) runs before
+    /// anything is recorded, so an error leaves the encoder usable; a buffer still mapped
+    /// is found only by the caller's submit (wgpu tells no earlier). A buffer from
+    /// another `wgpu::Instance` cannot be detected (wgpu resolves it among this device's
+    /// objects): never pass one. `dt` must be positive and finite (an error otherwise;
+    /// skip the call for a paused frame).
     pub fn encode_step(
         &mut self,
         ctx: &GpuContext,
@@ -420,7 +425,8 @@ impl Advection {
             )));
         }
         // The bind group first, in its own error scope: a buffer that is destroyed,
-        // invalid or from another device fails here, before anything is recorded.
+        // invalid or from another device of this instance fails here, before anything is
+        // recorded.
         let group = ctx.scoped(|| {
             let mut uniform = [0u8; 16];
             uniform[..4].copy_from_slice(&(n as u32).to_le_bytes());
@@ -476,13 +482,18 @@ impl Advection {
     }
 
     /// Waits for the GPU and reads the current colours (RGBA8 rows).
+    /// After [`Self::encode_step`], only once its encoder is submitted (before, this
+    /// reads the previous frame). `ctx` must be the one the advection was made with (or
+    /// a clone); another is an error.
     pub fn read_rgba8(&self, ctx: &GpuContext) -> Result<Vec<u8>> {
+        self.synthesizer.check_context(ctx)?;
         self.output.read_rgba8(ctx)
     }
 
     /// Waits for the GPU and reads the whole coordinate buffer (every level, then the
     /// flag region), to compare with the CPU mirror.
     pub fn read_coords(&self, ctx: &GpuContext) -> Result<Vec<[i32; 2]>> {
+        self.synthesizer.check_context(ctx)?;
         let bytes = self.coords.size();
         let rb = ctx.scoped(|| {
             let rb = ctx.device.create_buffer(&wgpu::BufferDescriptor {

@@ -210,7 +210,10 @@ impl GpuContext {
     /// `adapter_info` is taken from [`wgpu::Device::adapter_info`]. Like the other
     /// constructors this installs texsyn's uncaptured-error handler on the device (see
     /// [`take_uncaptured_errors`](Self::take_uncaptured_errors)), replacing any handler the
-    /// caller had set; set yours again afterwards if you need it.
+    /// caller had set; set yours again afterwards if you need it. Wrap a device once and
+    /// share clones of the context: a second `from_device` on the same device is another
+    /// context (texsyn objects of one are refused by the other), and its handler takes
+    /// the device's errors over from the first.
     pub fn from_device(device: wgpu::Device, queue: wgpu::Queue) -> Self {
         let info = device.adapter_info();
         Self::wrap(device, queue, info)

@@ -66,7 +66,9 @@ impl GpuSynthesis {
     /// GPU). For when the pixels are needed after all; `synthesize_to_host` does the
     /// synthesis and this read-back in one submission. After
     /// [`GpuSynthesizer::encode`], call it only once the encoder is submitted: before,
-    /// the texture is still blank (zeros), which this cannot tell from a result.
+    /// the texture is still blank (zeros), which this cannot tell from a result. `ctx`
+    /// must be the context the texture was made on (the synthesizer's, or a clone): this
+    /// struct does not record it, and wgpu panics on another instance's device.
     pub fn read_rgba8(&self, ctx: &GpuContext) -> Result<Vec<u8>> {
         let (w, h) = (self.width, self.height);
         let row = (w as u64 * 4).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT as u64);
@@ -191,7 +193,9 @@ pub struct GpuSynthesizer {
     /// With the surface buffer of atlas synthesis (a placeholder otherwise).
     jacobians: Mutex<Option<(JacobianKey, wgpu::Buffer, wgpu::Buffer)>>,
     /// [`Self::set_progress`]'s callback: (levels done, levels in all).
-    progress: Mutex<Option<LevelProgress>>,
+    /// The progress callback, in a lock of its own: the slot's lock is held only to
+    /// clone it out, so the callback may call [`Self::set_progress`] or synthesize.
+    progress: Mutex<Option<Arc<Mutex<LevelProgress>>>>,
 }
 
 /// An analysis level's `Et` and `qe` interpolated at every quarter pixel
@@ -947,8 +951,14 @@ impl GpuSynthesizer {
     /// lavapipe, but idle time on a real GPU), so set it for outputs that take seconds,
     /// and `None` to go back to one submission. [`Self::encode`] never splits (it does
     /// not submit). Results are the same bytes either way.
+    ///
+    /// The callback may call into this synthesizer (set another callback, or
+    /// synthesize): nothing is locked while it runs but the callback itself, and a
+    /// synthesis that finds it running (a synthesis called from inside it, or one on
+    /// another thread reporting at that moment) skips that report.
     pub fn set_progress(&self, f: Option<LevelProgress>) {
-        *self.progress.lock().unwrap_or_else(|e| e.into_inner()) = f;
+        *self.progress.lock().unwrap_or_else(|e| e.into_inner()) =
+            f.map(|f| Arc::new(Mutex::new(f)));
     }
 
     /// [`Self::record`] for the calls that submit the encoder themselves: with a
@@ -965,8 +975,12 @@ impl GpuSynthesizer {
         target: &wgpu::TextureView,
         maps: &[MapTarget<'_>],
     ) -> Result<wgpu::Buffer> {
-        let mut hook = self.progress.lock().unwrap_or_else(|e| e.into_inner());
-        let Some(report) = hook.as_mut() else {
+        let hook = self
+            .progress
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .clone();
+        let Some(report) = hook else {
             return ctx.scoped(|| self.record(ctx, encoder, plan, schedule, target, false, maps));
         };
         // Every level but the last is submitted and waited for here. Between those
@@ -990,7 +1004,10 @@ impl GpuSynthesizer {
                 ctx.queue.submit([done.finish()]);
             })?;
             wait(ctx)?;
-            report(level[0].level as u32 + 1, plan.levels.len() as u32);
+            // Busy: called from inside itself, or reporting another synthesis.
+            if let Ok(mut f) = report.try_lock() {
+                f(level[0].level as u32 + 1, plan.levels.len() as u32);
+            }
         }
         ctx.scoped(|| self.record_with(ctx, encoder, plan, last, target, false, maps, state))
     }
