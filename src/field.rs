@@ -336,7 +336,8 @@ impl Field {
                     return bad("perspective: values must be finite and scale > 0");
                 }
                 if bottom <= horizon {
-                    return bad("perspective: the bottom row must lie below the horizon");
+                    return bad("perspective: the reference row (BOTTOM, by default the output's last) must lie below \
+                     the horizon");
                 }
             }
             Field::Map(m) => {

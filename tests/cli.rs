@@ -1497,6 +1497,35 @@ fn audit_findings_fail_cleanly() {
     );
 }
 
+/// Windows of one field agree where they overlap once every position of the preset is
+/// given: the perspective's reference row and vanishing column (they followed each
+/// window, so no two windows agreed), and a swirl's centre.
+#[test]
+fn windows_along_a_field_agree_when_its_positions_are_given() {
+    let dir = TempDir::new("field-windows");
+    for field in ["perspective:-100,1.5,127,64", "swirl:40,30,50,0.5"] {
+        let run = |out: &str, window: &str, size: &str| {
+            ok(
+                &dir,
+                &[
+                    "synth", GRAVEL, "-o", out, "--size", size, "--window", window, "--field",
+                    field, "-q",
+                ],
+            );
+            image::open(dir.path(out)).unwrap().to_luma8()
+        };
+        let a = run("a.png", "0,0", "96x80");
+        let b = run("b.png", "40,24", "64x64");
+        let mut differ = 0;
+        for y in 24..80 {
+            for x in 40..96 {
+                differ += (a.get_pixel(x, y) != b.get_pixel(x - 40, y - 24)) as u32;
+            }
+        }
+        assert_eq!(differ, 0, "{field}: {differ} pixels of the overlap differ");
+    }
+}
+
 /// A reader that goes away (`texsyn ... 2>&1 | head -1`) loses the messages, not the
 /// work: before, the next progress line panicked ("failed printing to stderr", exit 101).
 #[test]

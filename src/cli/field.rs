@@ -16,13 +16,16 @@ pub const FIELD_HELP: &str = "Anisometric synthesis along a Jacobian field. SPEC
   swirl[:CX,CY,R,TURNS[,S]]   rotated by TURNS*360 deg at the centre, fading to 0 at radius R
   radial[:CX,CY,R,S,GROWTH]   'up' points at the centre; magnified by S at radius R and
                               S*GROWTH at the centre
-  perspective[:HORIZON,S]     ground plane: horizon at row HORIZON, magnification S at the
-                              bottom row
+  perspective[:HORIZON,S[,BOTTOM,CX]]
+                              ground plane: horizon at row HORIZON, magnification S at row
+                              BOTTOM (default: the output's last), vanishing point at
+                              column CX (default: the output's centre)
   image:FILE                  per pixel: red = rotation (0..1 = 0..360 deg), green =
                               magnification (0..1 = 1/8..8, log scale, 0.5 = 1); the output's size
   exr:FILE                    per pixel 2x2 Jacobian (R, G, B, A = J00, J01, J10, J11; exemplar
                               pixels per output pixel); the output's size
 Positions are output pixels; defaults: the output's centre, R = half its smaller side, S = 1.
+The defaults follow the --window: give every position for windows of one field to fit together.
 Magnifications are clamped to 1/8..8 (singular or huge Jacobians too).";
 
 /// A parsed `--field` argument (numbers still unresolved against the output size).
@@ -114,7 +117,7 @@ pub fn parse_field(s: &str) -> Result<FieldSpec, String> {
         }
         "perspective" => {
             let v = numbers(rest, name)?;
-            count(&v, &[0, 2])?;
+            count(&v, &[0, 2, 4])?;
             Ok(FieldSpec::Perspective(v))
         }
         "image" if !rest.is_empty() => Ok(FieldSpec::Image(rest.into())),
@@ -226,16 +229,22 @@ impl FieldSpec {
                 }
             }
             FieldSpec::Perspective(v) => {
-                let bottom = origin[1] as f64 + height as f64 - 1.0;
                 let (horizon, scale) = if v.is_empty() {
                     (origin[1] as f64 - height as f64 / 2.0, 1.5)
                 } else {
                     (v[0], v[1])
                 };
+                // Absolute, so that windows of one field agree: the defaults follow the
+                // window.
+                let (bottom, center) = if v.len() == 4 {
+                    (v[2], v[3])
+                } else {
+                    (origin[1] as f64 + height as f64 - 1.0, c[0])
+                };
                 Field::Perspective {
                     horizon,
                     bottom,
-                    center: c[0],
+                    center,
                     scale,
                 }
             }

@@ -26,7 +26,8 @@ use super::{
     long_about = "Synthesize a texture of any size from an exemplar image or analysis file.\n\n\
                   The output is a window of an infinite, deterministic texture: the same \
                   exemplar, options and seed always give the same pixels, and windows at \
-                  different --window origins fit together seamlessly."
+                  different --window origins fit together seamlessly (along a --field preset, \
+                  give all its positions: its defaults follow the window)."
 )]
 pub struct SynthArgs {
     /// Exemplar image, or an analysis file written by `texsyn analyze` (told apart by content)
