@@ -616,6 +616,16 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
     };
     // Validate the parameters before uploading anything.
     texsyn::passes::SynthPlan::new(&analysis, &params)?;
+    if args.tileable_output && (width % 4 != 0 || height % 4 != 0) {
+        // Every level's period is half the finer one's, rounded up: an odd period (or an
+        // odd half) cannot be upsampled coherently across the wrap.
+        ui.info(format!(
+            "note: a tileable side that is not a multiple of 4 shows a faint seam where the \
+             tiles meet ({width}x{height}; e.g. {}x{} tiles cleanly)",
+            width.next_multiple_of(4),
+            height.next_multiple_of(4)
+        ));
+    }
 
     // The pipelines are built on another thread while the analysis uploads (both take
     // tens of milliseconds on lavapipe; a large exemplar's upload is mostly page faults).
