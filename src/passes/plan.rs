@@ -412,7 +412,21 @@ impl SynthPlan {
             };
             rev.push((level, rlo, rhi, margin));
             lo = [floor_div2(rlo[0]), floor_div2(rlo[1])];
-            hi = [floor_div2(rhi[0] - 1) + 1, floor_div2(rhi[1] - 1) + 1];
+            // Along a field an odd child averages the predictions of its parent and the
+            // next one (`upsample_aniso`), so a region ending on an odd child needs one
+            // parent more to be exact: its last (margin) pixels, which magnification
+            // reads, otherwise differed between windows. Tileable and surface regions keep
+            // their sizes (periods, atlases), and a standalone texture is no window.
+            let odd_reach = params.field.is_some()
+                && !params.standalone
+                && !params.tileable_output
+                && params.surface.is_none()
+                && level > 0;
+            hi = if odd_reach {
+                [floor_div2(rhi[0]) + 1, floor_div2(rhi[1]) + 1]
+            } else {
+                [floor_div2(rhi[0] - 1) + 1, floor_div2(rhi[1] - 1) + 1]
+            };
         }
         rev.reverse();
         let mut levels = Vec::with_capacity(rev.len());
