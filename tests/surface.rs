@@ -82,6 +82,22 @@ fn two_chart_plane() -> Mesh {
     }
 }
 
+/// A generated atlas never lays two charts on the same texels: xatlas's random placement
+/// put a chart it found no room for at (0, 0), so a cube at 512 or 1024 had two faces
+/// sharing (mirroring) one texture. Each packing is now checked and packed again
+/// exhaustively.
+#[test]
+fn generated_atlases_do_not_overlap() {
+    let mut cube = Mesh::cube(2.0, 1);
+    cube.uvs = None;
+    cube.validate_and_repair().unwrap();
+    for size in [320, 512, 1024] {
+        let atlas = build_atlas(&cube, &AtlasOptions::for_size(size)).unwrap();
+        let (_, overlaps) = texsyn::surface::atlas::rasterize_counting(&atlas, 0);
+        assert_eq!(overlaps, 0, "{size}: {overlaps} texels covered twice");
+    }
+}
+
 #[test]
 fn indirection_lands_on_the_same_surface_point() {
     let mesh = two_chart_plane();

@@ -417,7 +417,13 @@ fn generate(mesh: &Mesh, opts: &AtlasOptions) -> Result<Atlas> {
     // too, so the padding asked for is adjusted to land on `gutter` after rescaling).
     let mut tpu = (0.6 * n * n / area).sqrt();
     let mut best: Option<Packed> = None;
-    for _attempt in 0..4 {
+    // xatlas's random placement puts a chart it found no room for after `attempts` tries
+    // at (0, 0), onto another chart (a cube at 512 or 1024: two faces shared, mirrored,
+    // one texture). Each packing is checked, and after an overlap the placement is
+    // exhaustive (attempts 0), slower but exact.
+    let mut exhaustive = false;
+    let mut overlapped = 0usize;
+    for _attempt in 0..6 {
         let padding = opts.gutter + 1;
         let mut xa = xatlas_rs::Xatlas::new();
         xa.add_mesh(&xatlas_rs::MeshDecl {
@@ -438,7 +444,7 @@ fn generate(mesh: &Mesh, opts: &AtlasOptions) -> Result<Atlas> {
         xa.generate_simple(
             xatlas_rs::ChartOptions::default(),
             xatlas_rs::PackOptions {
-                attempts: 64,
+                attempts: if exhaustive { 0 } else { 64 },
                 texels_per_unit: tpu as f32,
                 resolution: 0,
                 max_chart_size: opts.size,
@@ -494,6 +500,32 @@ fn generate(mesh: &Mesh, opts: &AtlasOptions) -> Result<Atlas> {
                 "xatlas left triangles outside every chart".into(),
             ));
         }
+        let scale = 1.0 / extent.max(n) as f32;
+        let probe = Atlas {
+            size: opts.size,
+            mesh: Mesh {
+                positions: vec![glam::Vec3::ZERO; verts.len()],
+                normals: Vec::new(),
+                uvs: Some(
+                    verts
+                        .iter()
+                        .map(|v| Vec2::new(v.uv[0], v.uv[1]) * scale)
+                        .collect(),
+                ),
+                tangents: None,
+                triangles: idx.chunks(3).map(|t| [t[0], t[1], t[2]]).collect(),
+            },
+            chart_of_triangle: chart_of_triangle.clone(),
+            chart_count,
+            generated: true,
+            note: String::new(),
+        };
+        let (_, overlaps) = rasterize_counting(&probe, 0);
+        if overlaps > 0 {
+            overlapped = overlaps;
+            exhaustive = true;
+            continue;
+        }
         let ratio = n / extent;
         best = Some((verts, idx, chart_of_triangle, chart_count, extent));
         if (0.9..=1.0).contains(&ratio) {
@@ -502,7 +534,14 @@ fn generate(mesh: &Mesh, opts: &AtlasOptions) -> Result<Atlas> {
         // Aim slightly under the atlas so the rescale rarely shrinks the gutter.
         tpu *= ratio * 0.985;
     }
-    let (verts, idx, chart_of_triangle, chart_count, extent) = best.unwrap();
+    let Some((verts, idx, chart_of_triangle, chart_count, extent)) = best else {
+        return Err(Error::InvalidParameter(format!(
+            "xatlas packed overlapping charts at {0}x{0} ({overlapped} texels covered twice) \
+             however it was asked; try another --atlas-size, or give the mesh its own \
+             TEXCOORD_0 atlas",
+            opts.size
+        )));
+    };
     let scale = 1.0 / extent.max(n) as f32;
     let pick = |xref: u32| xref as usize;
     let out = Mesh {
