@@ -98,6 +98,59 @@ fn generated_atlases_do_not_overlap() {
     }
 }
 
+/// A mesh's own atlas whose seam runs along the atlas border (a sphere's u = 0 and u = 1)
+/// has no room for the indirection band across it: refused (so `Auto` builds one with
+/// xatlas) instead of leaving a visible line; the same uvs with a margin are kept.
+#[test]
+fn own_atlases_with_a_seam_on_the_border_are_refused() {
+    // An open tube whose uvs wrap around it: the seam vertices at u = 0 and u = 1 share
+    // bit-identical positions; the rims are open boundaries.
+    let n = 16u32;
+    let (mut positions, mut normals, mut uvs, mut triangles) = (vec![], vec![], vec![], vec![]);
+    for j in 0..=1u32 {
+        for i in 0..=n {
+            let a = (i % n) as f32 / n as f32 * std::f32::consts::TAU;
+            positions.push(Vec3::new(a.cos(), j as f32 * 2.0, a.sin()));
+            normals.push(Vec3::new(a.cos(), 0.0, a.sin()));
+            uvs.push(Vec2::new(i as f32 / n as f32, j as f32));
+        }
+    }
+    for i in 0..n {
+        let (a, b, c, d) = (i, i + 1, n + 2 + i, n + 1 + i);
+        triangles.push([a, c, b]);
+        triangles.push([a, d, c]);
+    }
+    let mut sphere = Mesh {
+        positions,
+        normals,
+        uvs: Some(uvs),
+        tangents: None,
+        triangles,
+    };
+    sphere.validate_and_repair().unwrap();
+    let keep = AtlasOptions {
+        size: 128,
+        gutter: 5,
+        source: AtlasSource::Keep,
+    };
+    let e = build_atlas(&sphere, &keep).unwrap_err().to_string();
+    assert!(e.contains("atlas border"), "{e}");
+    let auto = build_atlas(
+        &sphere,
+        &AtlasOptions {
+            source: AtlasSource::Auto,
+            ..keep.clone()
+        },
+    )
+    .unwrap();
+    assert!(auto.generated);
+    for uv in sphere.uvs.as_mut().unwrap() {
+        *uv = Vec2::splat(0.1) + *uv * 0.8;
+    }
+    let kept = build_atlas(&sphere, &keep).unwrap();
+    assert!(!kept.generated);
+}
+
 #[test]
 fn indirection_lands_on_the_same_surface_point() {
     let mesh = two_chart_plane();

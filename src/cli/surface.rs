@@ -46,8 +46,9 @@ pub struct SurfaceArgs {
           value_parser = clap::value_parser!(u32).range(8..=16384))]
     pub atlas_size: u32,
 
-    /// World units per exemplar texel: a number, or linear:AX,AY,AZ:S_MIN:S_MAX to vary
-    /// it along an axis. Default: one exemplar texel per atlas texel on average
+    /// World units per exemplar texel (of the full-resolution exemplar, also with
+    /// --magnify): a number, or linear:AX,AY,AZ:S_MIN:S_MAX to vary it along an axis.
+    /// Default: one exemplar texel per atlas texel on average
     #[arg(long, value_name = "S|SPEC", value_parser = parse_scale, allow_hyphen_values = true)]
     pub texel_size: Option<ScaleSource>,
 
@@ -337,7 +338,26 @@ pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
             ..AtlasOptions::for_size(args.atlas_size)
         },
         direction,
-        scale: args.texel_size.clone(),
+        // The texel size counts full-resolution exemplar texels: with --magnify F the
+        // synthesis's exemplar texel is F of them.
+        scale: args.texel_size.clone().map(|s| {
+            let f = args.magnify.unwrap_or(1) as f32;
+            match s {
+                ScaleSource::Constant(v) => ScaleSource::Constant(v * f),
+                ScaleSource::PerVertex(v) => {
+                    ScaleSource::PerVertex(v.into_iter().map(|x| x * f).collect())
+                }
+                ScaleSource::Linear {
+                    axis,
+                    at_min,
+                    at_max,
+                } => ScaleSource::Linear {
+                    axis,
+                    at_min: at_min * f,
+                    at_max: at_max * f,
+                },
+            }
+        }),
     };
     ui.progress("preparing the atlas, field and maps...");
     let t = Instant::now();
@@ -356,7 +376,10 @@ pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
         }
     ));
     if let Some(s) = prepared.texel_size {
-        ui.info(format!("texel size: {s:.5} world units per exemplar texel"));
+        ui.info(format!(
+            "texel size: {:.5} world units per exemplar texel",
+            s / args.magnify.unwrap_or(1) as f32
+        ));
     }
     let sing = prepared.field.singularities().len();
     if sing > 0 {

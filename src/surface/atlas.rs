@@ -220,7 +220,7 @@ fn check_existing(mesh: &Mesh, opts: &AtlasOptions) -> std::result::Result<Atlas
     let (ids, overlaps) = rasterize_counting(&atlas, 0);
     if overlaps > 0 {
         return Err(format!(
-            "{overlaps} atlas texels are covered by more than one triangle (overlapping or mirrored-onto-itself charts)"
+            "atlas texels are covered by more than one triangle ({overlaps} second coverings: overlapping or mirrored-onto-itself charts)"
         ));
     }
     let chart_raster: Vec<u32> = ids
@@ -233,6 +233,14 @@ fn check_existing(mesh: &Mesh, opts: &AtlasOptions) -> std::result::Result<Atlas
             }
         })
         .collect();
+    if let Some(d) = seam_near_border(mesh, opts.size, opts.gutter) {
+        return Err(format!(
+            "a chart seam comes within {d:.1} texels of the atlas border at {0}x{0} (the uvs \
+             wrap around or fill the atlas); the indirection band across it needs {1} (let \
+             texsyn build an atlas, or leave a margin in the uvs)",
+            opts.size, opts.gutter
+        ));
+    }
     if let Some(gap) = narrowest_gap(&chart_raster, opts.size, opts.gutter) {
         return Err(format!(
             "charts come within {gap} texels of each other at {0}x{0}; the indirection band needs {1} (use a larger atlas, or let texsyn build one)",
@@ -240,6 +248,44 @@ fn check_existing(mesh: &Mesh, opts: &AtlasOptions) -> std::result::Result<Atlas
         ));
     }
     Ok(atlas)
+}
+
+/// The nearest distance (texels, < `gutter`) from the atlas border of a seam edge: an
+/// edge whose two triangles meet in 3D but not in uv space (two charts, or a chart that
+/// wraps around onto itself, as a sphere's u = 0 and u = 1). The indirection band across
+/// it lies in the gutter around it, which the border cuts off (the texture is sampled
+/// clamped there): a visible line. Boundary edges of an open mesh need no band.
+fn seam_near_border(mesh: &Mesh, size: u32, gutter: u32) -> Option<f32> {
+    let uvs = mesh.uvs.as_ref()?;
+    let (weld, _) = mesh.welded_vertex_ids();
+    let adjacency = mesh.triangle_adjacency();
+    let s = size as f32;
+    let g = gutter as f32;
+    let mut nearest: Option<f32> = None;
+    for (t, tri) in mesh.triangles.iter().enumerate() {
+        for (e, other) in adjacency[t].iter().enumerate() {
+            let Some(o) = *other else { continue };
+            let (a, b) = (tri[e], tri[(e + 1) % 3]);
+            let other = &mesh.triangles[o as usize];
+            let same_uv = |v: u32| {
+                other
+                    .iter()
+                    .find(|&&w| weld[w as usize] == weld[v as usize])
+                    .is_some_and(|&w| uvs[w as usize] == uvs[v as usize])
+            };
+            if same_uv(a) && same_uv(b) {
+                continue;
+            }
+            for v in [a, b] {
+                let p = uvs[v as usize] * s;
+                let d = p.x.min(p.y).min(s - p.x).min(s - p.y);
+                if d < g && nearest.is_none_or(|n| d < n) {
+                    nearest = Some(d);
+                }
+            }
+        }
+    }
+    nearest
 }
 
 /// Smallest Chebyshev distance (< `gutter`) between texels of different charts, or None
@@ -536,7 +582,8 @@ fn generate(mesh: &Mesh, opts: &AtlasOptions) -> Result<Atlas> {
     }
     let Some((verts, idx, chart_of_triangle, chart_count, extent)) = best else {
         return Err(Error::InvalidParameter(format!(
-            "xatlas packed overlapping charts at {0}x{0} ({overlapped} texels covered twice) \
+            "xatlas packed overlapping charts at {0}x{0} ({overlapped} second coverings of \
+             texels) \
              however it was asked; try another --atlas-size, or give the mesh its own \
              TEXCOORD_0 atlas",
             opts.size
