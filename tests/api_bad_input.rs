@@ -174,17 +174,32 @@ fn a_larger_velocity_buffer_is_read_in_part() {
         height: 24,
         ..Default::default()
     };
-    let mut adv = texsyn::Advection::new(ctx(), synth, &params, Default::default()).unwrap();
-    let buffer = ctx().device.create_buffer(&wgpu::BufferDescriptor {
-        label: None,
-        size: 24 * 24 * 8 * 3,
-        usage: wgpu::BufferUsages::STORAGE,
-        mapped_at_creation: false,
-    });
+    let mut adv =
+        texsyn::Advection::new(ctx(), synth.clone(), &params, Default::default()).unwrap();
+    let mut twin = texsyn::Advection::new(ctx(), synth, &params, Default::default()).unwrap();
+    // The first w * h entries a flow, the rest garbage that must not be read.
+    let v = Flow::Vortex {
+        cx: 0.4,
+        cy: 0.6,
+        omega: 0.05,
+    }
+    .sample(24, 24, 0.0)
+    .unwrap();
+    let mut contents = v.clone();
+    contents.extend(std::iter::repeat_n([40.0f32, -33.0], 24 * 24 * 2));
+    let buffer = wgpu::util::DeviceExt::create_buffer_init(
+        &ctx().device,
+        &wgpu::util::BufferInitDescriptor {
+            label: None,
+            contents: bytemuck::cast_slice(&contents),
+            usage: wgpu::BufferUsages::STORAGE,
+        },
+    );
     let mut encoder = ctx().device.create_command_encoder(&Default::default());
     adv.encode_step(ctx(), &mut encoder, &buffer, 1.0).unwrap();
     ctx().queue.submit([encoder.finish()]);
-    ctx().wait_idle().unwrap();
+    twin.step(ctx(), &v, 1.0).unwrap();
+    assert!(adv.read_coords(ctx()).unwrap() == twin.read_coords(ctx()).unwrap());
     ctx().take_uncaptured_errors().unwrap();
 }
 

@@ -45,6 +45,28 @@ fn headless_creates_a_device_with_the_adapter_limits() {
     );
     assert!(limits.max_compute_invocations_per_workgroup >= 64);
     assert!(limits.max_texture_dimension_2d >= 2048);
+    // Exactly the adapter's (lavapipe's exceed the defaults: 2^31 - 1 bytes against 2^28).
+    let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
+        backends: wgpu::Backends::all(),
+        ..wgpu::InstanceDescriptor::new_without_display_handle()
+    });
+    let adapter_limits = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()))
+        .into_iter()
+        .find(|a| {
+            let i = a.get_info();
+            i.name == ctx.adapter_info.name && i.backend == ctx.adapter_info.backend
+        })
+        .map(|a| a.limits())
+        .expect("the context's adapter is listed");
+    assert_eq!(limits.max_buffer_size, adapter_limits.max_buffer_size);
+    assert_eq!(
+        limits.max_texture_dimension_2d,
+        adapter_limits.max_texture_dimension_2d
+    );
+    assert_eq!(
+        limits.max_storage_buffer_binding_size,
+        adapter_limits.max_storage_buffer_binding_size
+    );
 
     // A valid operation inside a scope succeeds and returns its value.
     let buffer = ctx
