@@ -13,7 +13,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let i = params.coord_base + u32(q.y * params.size.x + q.x);
-    if (params.drift == 0u) {
+    if (!DRIFT) {
         coords[i] = upsample_at(params.origin + q, i);
         return;
     }

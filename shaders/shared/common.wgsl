@@ -106,6 +106,9 @@ override SEAM_BLEND: bool = false;
 override K: i32 = 2;
 // params.coherent_skip (see correct_aniso.wgsl).
 override COHERENT_SKIP: bool = false;
+// params.drift != 0: an advection frame's upsampling follows the drift's phase
+// (upsample_aniso.wgsl); as a uniform branch it slowed every synthesis along a field.
+override DRIFT: bool = false;
 // Synthesized exemplar coordinates of every level's region, concatenated.
 @group(0) @binding(1) var<storage, read_write> coords: array<vec2<i32>>;
 // Quantized transformed exemplar Et_l: 8 x i16 per pixel, all levels.

@@ -296,6 +296,12 @@ impl Variant {
     const GATHER_ONLY: u16 = 0b11 << 8;
     const FINE_TABLES: u16 = 1 << 6;
     const IDENTITY_J: u16 = 1 << 7;
+    /// Above k's bits: `params.drift != 0`, which only the anisometric upsampling
+    /// branches on (an advection frame's drift phase). As a uniform branch it cost every
+    /// synthesis along a field about a tenth of its time on lavapipe (measured: bench
+    /// 512x512, `rotate:30` 104-108 ms against 92-93 ms, swirl 126-132 against 114-115).
+    const DRIFT: u16 = 1 << 14;
+    const K_MASK: u16 = 0b111;
 
     /// The switches of a dispatch, from the parameters the CPU mirror reads
     /// (FINE_TABLES off: see [`Self::with_fine_tables`]).
@@ -314,11 +320,14 @@ impl Variant {
             p.coherent_skip != 0,
         ];
         let k = (p.k.clamp(1, crate::analysis::MAX_K as i32) - 1) as u16;
+        let drift = if p.drift != 0 { Self::DRIFT } else { 0 };
         Self(
             flags
                 .iter()
                 .enumerate()
-                .fold(k << Self::K_SHIFT, |v, (i, &b)| v | (u16::from(b) << i)),
+                .fold((k << Self::K_SHIFT) | drift, |v, (i, &b)| {
+                    v | (u16::from(b) << i)
+                }),
         )
     }
 
@@ -342,10 +351,16 @@ impl Variant {
     /// The switches only the correction passes read are reset for the others, so they
     /// share one pipeline across levels.
     fn for_kind(self, kind: PassKind) -> Self {
+        // DRIFT only matters to the anisometric upsampling.
+        let v = if kind == PassKind::UpsampleAniso {
+            self.0
+        } else {
+            self.0 & !Self::DRIFT
+        };
         match kind {
-            PassKind::Correct | PassKind::CorrectAniso => Self(self.0 & !Self::GATHER_ONLY),
-            PassKind::Gather | PassKind::GatherAniso => Self(self.0 & !Self::CORRECTION_ONLY),
-            _ => Self(self.0 & !(Self::CORRECTION_ONLY | Self::GATHER_ONLY)),
+            PassKind::Correct | PassKind::CorrectAniso => Self(v & !Self::GATHER_ONLY),
+            PassKind::Gather | PassKind::GatherAniso => Self(v & !Self::CORRECTION_ONLY),
+            _ => Self(v & !(Self::CORRECTION_ONLY | Self::GATHER_ONLY)),
         }
     }
 
@@ -356,7 +371,11 @@ impl Variant {
             .enumerate()
             .map(|(i, &name)| (name, f64::from((self.0 >> i) & 1)))
             .collect();
-        c.push(("K", f64::from((self.0 >> Self::K_SHIFT) + 1)));
+        c.push((
+            "K",
+            f64::from(((self.0 >> Self::K_SHIFT) & Self::K_MASK) + 1),
+        ));
+        c.push(("DRIFT", f64::from(u16::from(self.0 & Self::DRIFT != 0))));
         c
     }
 }
