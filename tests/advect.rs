@@ -720,64 +720,59 @@ fn bad_velocities_and_time_steps() {
             .to_string();
         assert!(e.contains("sets every"), "{e}");
     }
-    // One level with the finest upsampled would advect nothing.
-    let e = adv
-        .set_options(AdvectOptions {
-            levels: 1,
-            ..AdvectOptions::default()
-        })
-        .unwrap_err()
-        .to_string();
-    assert!(e.contains("use 2-16 levels"), "{e}");
-    // No level at all: the advice must not be another failing setting.
-    let e = adv
-        .set_options(AdvectOptions {
-            levels: 0,
-            upsample_finest: false,
-            ..AdvectOptions::default()
-        })
-        .unwrap_err()
-        .to_string();
-    assert!(e.contains("use 1-16 levels"), "{e}");
-    // Re-synthesized levels need an advected level above them and the finest upsampled.
-    let e = adv
-        .set_options(AdvectOptions {
-            levels: 3,
-            resynthesize: 2,
-            ..AdvectOptions::default()
-        })
-        .unwrap_err()
-        .to_string();
-    assert!(e.contains("at least 4 levels"), "{e}");
-    let e = adv
-        .set_options(AdvectOptions {
-            levels: 6,
-            upsample_finest: false,
-            resynthesize: 2,
-            ..AdvectOptions::default()
-        })
-        .unwrap_err()
-        .to_string();
-    assert!(e.contains("drop --advect-finest"), "{e}");
-    // More re-synthesized levels than the pyramid has room for: an error, not fewer.
-    let e = adv
-        .set_options(AdvectOptions {
-            levels: 16,
-            resynthesize: 14,
-            ..AdvectOptions::default()
-        })
-        .unwrap_err()
-        .to_string();
-    assert!(e.contains("can be re-synthesized"), "{e}");
-    let e = adv
-        .set_options(AdvectOptions {
-            levels: 16,
-            resynthesize: 15,
-            ..AdvectOptions::default()
-        })
-        .unwrap_err()
-        .to_string();
-    assert!(e.contains("at most 14"), "{e}");
+    let d = AdvectOptions::default();
+    for (o, needle) in [
+        // One level with the finest upsampled would advect nothing.
+        (AdvectOptions { levels: 1, ..d }, "use 2-16 levels"),
+        // No level at all: the advice must not be another failing setting.
+        (
+            AdvectOptions {
+                levels: 0,
+                upsample_finest: false,
+                ..d
+            },
+            "use 1-16 levels",
+        ),
+        // Re-synthesized levels need an advected level above them and the finest
+        // upsampled.
+        (
+            AdvectOptions {
+                levels: 3,
+                resynthesize: 2,
+                ..d
+            },
+            "at least 4 levels",
+        ),
+        (
+            AdvectOptions {
+                levels: 6,
+                upsample_finest: false,
+                resynthesize: 2,
+                ..d
+            },
+            "drop --advect-finest",
+        ),
+        // More re-synthesized levels than the pyramid has room for: an error, not fewer.
+        (
+            AdvectOptions {
+                levels: 16,
+                resynthesize: 14,
+                ..d
+            },
+            "can be re-synthesized",
+        ),
+        (
+            AdvectOptions {
+                levels: 16,
+                resynthesize: 15,
+                ..d
+            },
+            "at most 14",
+        ),
+    ] {
+        let e = adv.set_options(o).unwrap_err().to_string();
+        assert!(e.contains(needle), "{o:?}: {e}");
+    }
     adv.set_options(AdvectOptions {
         levels: 1,
         upsample_finest: false,
