@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
 """Regenerates docs/advection_resynthesize.png (README, Advection): frame 300 of the default
-vortex, 256x256, with the levels below the finest advected (`--resynthesize 0`, the default)
-and re-synthesized every frame (`--resynthesize 3 --levels 5`), for the bundled brick and
-gravel; next to each, where frame 300 differs from frame 299 moved by the flow (white: a
+vortex, 256x256, with the levels below the finest advected (the default)
+and with `--keep-look` (the two levels below the finest re-synthesized every frame, the advected
+level above them renewed where it turns by about 5 degrees), for the bundled brick and gravel; next to each, where frame 300 differs from frame 299 moved by the flow (white: a
 change of 1/3 of full scale or more), which is the popping the option costs.
 
     cargo build --release && python3 docs/make_resynthesize.py
@@ -17,7 +17,7 @@ import numpy as np
 from PIL import Image, ImageDraw
 
 EXEMPLARS = ["brick", "gravel"]
-CONFIGS = [("K = 0", ["--resynthesize", "0"]), ("K = 3", ["--resynthesize", "3", "--levels", "5"])]
+CONFIGS = [("default", []), ("--keep-look", ["--keep-look"])]
 SIZE, GAP, LABEL, OMEGA = 256, 8, 14, 0.01
 BIN = os.environ.get("TEXSYN", "target/release/texsyn")
 

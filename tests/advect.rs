@@ -1318,11 +1318,15 @@ fn resynthesized_levels_keep_the_texture_energy_under_a_vortex() {
     let (w, h) = (96u32, 96u32);
     let (params, v) = centred_vortex(w, h, 0.02);
     let mut figures = Vec::new();
-    for resynthesize in [0, 3] {
-        let o = AdvectOptions {
-            resynthesize,
-            levels: 2 + resynthesize.max(1),
-            ..AdvectOptions::default()
+    for (resynthesize, keep_look) in [(0, false), (3, false), (2, true)] {
+        let o = if keep_look {
+            AdvectOptions::keep_look()
+        } else {
+            AdvectOptions {
+                resynthesize,
+                levels: 2 + resynthesize.max(1),
+                ..AdvectOptions::default()
+            }
         };
         let mut adv = Advection::new(ctx(), synth.clone(), &params, o).unwrap();
         let energy = |rgba: &[u8]| texture_energy(&exi, &grey(rgba, w, h), 3).unwrap();
@@ -1341,17 +1345,18 @@ fn resynthesized_levels_keep_the_texture_energy_under_a_vortex() {
         }
         let (e0, e100) = (energy(&first), energy(&prev));
         eprintln!(
-            "re-synthesized {resynthesize}: energy {e0:.5} -> {e100:.5}, warped difference \
-             {warped:.3}"
+            "re-synthesized {resynthesize}, keep_look {keep_look}: energy {e0:.5} -> \
+             {e100:.5}, warped difference {warped:.3}"
         );
         figures.push((e0, e100, warped));
     }
     // Measured (twice the default vortex's speed): advected 0.0039 -> 0.0093, warped
-    // difference 16.5; re-synthesized 0.0026 -> 0.0039, 21.1.
-    let (advected, resynthesized) = (figures[0], figures[1]);
-    assert!(
-        resynthesized.1 < 1.7 * resynthesized.0 && resynthesized.1 < 0.6 * advected.1,
-        "{figures:?}"
-    );
-    assert!(resynthesized.2 < 1.6 * advected.2, "{figures:?}");
+    // difference 16.5; re-synthesized 0.0026 -> 0.0043, 21.1; `keep_look` 0.0040 ->
+    // 0.0051, 19.9 (at the default speed and 256x256 it stays within 7% on gravel).
+    let (advected, resynthesized, kept) = (figures[0], figures[1], figures[2]);
+    for f in [resynthesized, kept] {
+        assert!(f.1 < 1.7 * f.0 && f.1 < 0.65 * advected.1, "{figures:?}");
+        assert!(f.2 < 1.6 * advected.2, "{figures:?}");
+    }
+    assert!(kept.1 < 1.4 * kept.0, "{figures:?}");
 }

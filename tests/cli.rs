@@ -1246,6 +1246,38 @@ fn review_findings_fail_cleanly() {
         1,
         "at least 4 levels (--levels)",
     );
+    // --keep-look supplies --resynthesize 2 --levels 4; an explicit --levels still wins.
+    fails(
+        &dir,
+        &[
+            "advect",
+            GRAVEL,
+            "--flow",
+            "vortex",
+            "--keep-look",
+            "--levels",
+            "3",
+            "-o",
+            "frames",
+        ],
+        1,
+        "with 2 re-synthesized below the finest",
+    );
+    fails(
+        &dir,
+        &[
+            "advect",
+            GRAVEL,
+            "--flow",
+            "vortex",
+            "--keep-look",
+            "--advect-finest",
+            "-o",
+            "frames",
+        ],
+        2,
+        "cannot be used with",
+    );
     fails(
         &dir,
         &[
