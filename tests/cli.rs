@@ -1246,7 +1246,7 @@ fn review_findings_fail_cleanly() {
         1,
         "at least 4 levels (--levels)",
     );
-    // --keep-look supplies --resynthesize 2 --levels 4; an explicit --levels still wins.
+    // --keep-look remakes the advected levels itself.
     fails(
         &dir,
         &[
@@ -1255,13 +1255,13 @@ fn review_findings_fail_cleanly() {
             "--flow",
             "vortex",
             "--keep-look",
-            "--levels",
-            "3",
+            "--resynthesize",
+            "1",
             "-o",
             "frames",
         ],
-        1,
-        "with 2 re-synthesized below the finest",
+        2,
+        "cannot be used with",
     );
     fails(
         &dir,

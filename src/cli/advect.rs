@@ -59,14 +59,15 @@ pub struct AdvectArgs {
     #[arg(long, value_name = "K", default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
     pub every: u32,
 
-    /// Keep the texture's look under turning and divergent flows: re-synthesize the two
-    /// levels below the finest every frame and renew the advected level above them where
-    /// it has turned or stretched by about 5 degrees or 12% (--resynthesize 2 --levels 4
-    /// --threshold 0.12; each can still be given). The texture energy stays at frame 0's
-    /// under a vortex, but the texture is continuously remade as it moves (over tens of
-    /// frames most of it is new), and a uniform flow no longer moves it exactly; without
-    /// it the texture is advected (the paper's scheme) and breaks up as it turns
-    #[arg(long, conflicts_with = "advect_finest")]
+    /// Keep the texture's look under turning and divergent flows: remake the advected
+    /// levels below the coarsest one wherever the flow turns or stretches them, and renew
+    /// the coarsest where it has turned or stretched by about 5 degrees or 12% (--levels 4
+    /// --threshold 0.12, the coarsest level's threshold here; both can still be given).
+    /// The texture energy stays near frame 0's under a vortex, but the texture is
+    /// continuously remade as it moves (over tens of frames most of it is new); a uniform
+    /// flow still moves it exactly. Without it the texture is advected (the paper's
+    /// scheme) and breaks up as it turns
+    #[arg(long, conflicts_with_all = ["advect_finest", "resynthesize"])]
     pub keep_look: bool,
 
     /// Levels each frame works on (the finest ones): the finest is upsampled from the
@@ -86,15 +87,16 @@ pub struct AdvectArgs {
     /// advected levels and corrected, as in a synthesis) instead of advecting them: a
     /// turning flow then breaks up only the coarse advected levels, and the texture
     /// keeps its frame-0 energy, for more change between frames; --levels must be at
-    /// least this + 2 [default: 0, 2 with --keep-look]
-    #[arg(long, value_name = "K")]
-    pub resynthesize: Option<usize>,
+    /// least this + 2
+    #[arg(long, value_name = "K", default_value_t = AdvectOptions::default().resynthesize)]
+    pub resynthesize: usize,
 
     /// Distortion threshold |J_obs - J|_F beyond which a pixel is re-synthesized (steps
     /// off by a whole pixel on both sides are patch seams, not distortion, so thresholds
     /// of about 1 and more re-synthesize little: only the pixels with seams on both sides
-    /// of both axes, which continue no patch and are re-synthesized at any threshold)
-    /// [default: 0.5, 0.12 with --keep-look]
+    /// of both axes, which continue no patch and are re-synthesized at any threshold;
+    /// with --keep-look, of the coarsest advected level) [default: 0.5, 0.12 with
+    /// --keep-look]
     #[arg(long)]
     pub threshold: Option<f32>,
 
@@ -372,7 +374,8 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
         skip_coherent: !args.correct_coherent,
         sets_every: args.sets_every,
         upsample_finest: !args.advect_finest,
-        resynthesize: args.resynthesize.unwrap_or(preset.resynthesize),
+        resynthesize: args.resynthesize,
+        keep_look: args.keep_look,
     };
     options.check()?;
     // The temporal figures printed at the end use 5x5 windows: refuse what they cannot

@@ -318,31 +318,47 @@ pub struct AdvectOptions {
     /// 0.0310, 0.0532 against 0.0608, 0.0310, 0.0528), for about an eighth less of a
     /// 512x512 frame's time once the vortex has broken the patches up (100 frames).
     pub sets_every: u32,
+    /// Keep the texture's look under turning and divergent flows (with
+    /// [`Self::upsample_finest`], no [`Self::resynthesize`]; [`Self::keep_look()`] gives
+    /// the measured settings). The coarsest advected level works as usual, its
+    /// [`Self::threshold`] renewing it from the coarser level where it has turned or
+    /// stretched too far. The advected levels below it are remade (upsampled from the
+    /// level above, then corrected) wherever they moved other than rigidly, their
+    /// Jacobian off by more than [`KEEP_LOOK_REMAKE_THRESHOLD`], and kept as advected
+    /// elsewhere: a turning flow remakes them every frame, so the texture is neither
+    /// turned nor broken up and its energy stays near frame 0's, while a uniform flow
+    /// still moves them exactly. Every advected level runs all its correction subpasses
+    /// every frame, none skipping coherent pixels, and frame 0 makes the levels below
+    /// the coarsest advected one as the frames do (no jitter, the frames' passes). The
+    /// price: under a turning flow the texture is continuously remade as it moves (over
+    /// tens of frames most of it is new, and whole regions change at once where the
+    /// coarse level is renewed), and a frame costs more. Off by default.
+    pub keep_look: bool,
 }
+
+/// The distortion threshold (Jacobian units) beyond which [`AdvectOptions::keep_look`]
+/// remakes a pixel of the advected levels below the coarsest one: about 0.3 degrees of
+/// turning. Below the 1/256-pixel rounding of neighbouring coordinates (which stays
+/// under it at every level) nothing is remade, so rigid motion keeps the advected
+/// texture; the default vortex (0.01 radian per frame) remakes every pixel every frame.
+pub const KEEP_LOOK_REMAKE_THRESHOLD: f32 = 0.005;
 
 impl AdvectOptions {
     /// Options that keep the texture's look under turning and divergent flows (CLI
-    /// `texsyn advect --keep-look`): the two levels below the finest re-synthesized every
-    /// frame ([`Self::resynthesize`] 2), one advected level above them ([`Self::levels`]
-    /// 4), renewed from the coarser level where it has turned or stretched by about 5
-    /// degrees or 12% ([`Self::threshold`] 0.12, against 0.5). A turning flow then
-    /// neither breaks the texture up nor turns it: the texture energy stays at frame
-    /// 0's. The price is that the texture is continuously remade as it moves: frame to
-    /// frame the change stays well below a resynthesis's, but over tens of frames of a
-    /// vortex most of it is new, and a uniform flow no longer moves it exactly (the
-    /// re-synthesized levels read the exemplar at the advected level's sub-pixel offset,
-    /// which the flow changes). The defaults advect instead, the paper's scheme.
-    /// Measured (forty-eighth session, lavapipe; 256x256, 300 frames of the default
-    /// vortex, against the defaults): energy at frame 300 over frame 0's gravel 1.07
-    /// against 2.50, brick 0.85 against 2.28, grass 0.93 against 1.92, pink_marble 1.07
-    /// against 1.73, craters 1.00 against 0.89; flow-warped difference 16-81% higher
-    /// (26-49% of a resynthesis from scratch's); a 512x512 frame 38-46% of a whole
-    /// synthesis against 31% (README, *Advection*).
+    /// `texsyn advect --keep-look`): [`Self::keep_look`] on 4 levels with a distortion
+    /// threshold of 0.12 for the coarsest of them (about 5 degrees of turning or 12% of
+    /// stretch, against 0.5). Measured (forty-eighth session, lavapipe; 256x256, 300
+    /// frames of the default vortex, against the defaults): texture energy at frame 300
+    /// over frame 0's gravel 1.15 against 2.50, brick 0.87 against 2.28, grass 0.95
+    /// against 1.92, pink_marble 1.14 against 1.65, craters 1.00 against 0.92;
+    /// flow-warped difference 23-81% higher (27-51% of a resynthesis from scratch's); a
+    /// uniform flow of whole pixels moves the texture as exactly as by default; a
+    /// 512x512 frame 35-44% of a whole synthesis (README, *Advection*).
     pub fn keep_look() -> Self {
         Self {
             levels: 4,
-            resynthesize: 2,
             threshold: 0.12,
+            keep_look: true,
             ..Self::default()
         }
     }
@@ -397,6 +413,14 @@ impl AdvectOptions {
                 self.resynthesize
             )));
         }
+        if self.keep_look && (self.resynthesize > 0 || !self.upsample_finest) {
+            return Err(Error::InvalidParameter(
+                "keep_look remakes the advected levels itself: it needs the finest level \
+                 upsampled and no re-synthesized levels (drop --advect-finest and \
+                 --resynthesize with --keep-look)"
+                    .into(),
+            ));
+        }
         if self.resynthesize > 0 && self.levels < self.resynthesize + 2 {
             return Err(Error::InvalidParameter(format!(
                 "advection of {} levels with {} re-synthesized below the finest: the frames \
@@ -443,6 +467,7 @@ impl Default for AdvectOptions {
             sets_every: 2,
             upsample_finest: true,
             resynthesize: 0,
+            keep_look: false,
         }
     }
 }

@@ -872,8 +872,16 @@ impl SynthPlan {
                 ..self.pass_params(analysis, n - 1)
             },
         }];
-        for level in first.min(top)..=top {
+        let coarsest = first.min(top);
+        for level in coarsest..=top {
             let base = self.pass_params(analysis, level);
+            // With `keep_look` the levels below the coarsest advected one are remade
+            // wherever they moved other than rigidly (see `AdvectOptions::keep_look`).
+            let c = if options.keep_look && level > coarsest {
+                super::advect::KEEP_LOOK_REMAKE_THRESHOLD
+            } else {
+                c
+            };
             let adv = PassParams {
                 flag_base: self.flag_base(),
                 distortion_max: super::advect::distortion_max(c, base.spacing),
@@ -923,6 +931,7 @@ impl SynthPlan {
                     PassKind::CorrectAniso => {
                         let most = level == top;
                         keep_fill = passes > 1
+                            || options.keep_look
                             || (most && upsample_finest)
                             || if most {
                                 subpass % 2 == (frame + level as u64) % 2
@@ -933,7 +942,10 @@ impl SynthPlan {
                             let mut d = *d;
                             d.params.kset_interp = options.interpolate_sets as u32;
                             d.params.quarter = options.quarter_reads as u32;
-                            d.params.coherent_skip = options.skip_coherent as u32;
+                            // Remade pixels inside a coherent block of the coarser
+                            // level's upsampling would be skipped uncorrected.
+                            d.params.coherent_skip =
+                                (options.skip_coherent && !options.keep_look) as u32;
                             // With one pass, the most corrected level's similarity sets
                             // follow the frames' `sets_every` over the frames (with
                             // more, the passes do), at the same cost every frame when
@@ -994,7 +1006,9 @@ impl SynthPlan {
     /// is left uncorrected and the re-synthesized levels below it
     /// ([`super::advect::AdvectOptions::resynthesize`]) are made as the later frames
     /// make them (no jitter, the frames' passes), so that frame 1 does not change the
-    /// texture's look.
+    /// texture's look; so are, with [`super::advect::AdvectOptions::keep_look`], the
+    /// advected levels below the coarsest one, which its frames remake under a turning
+    /// flow.
     pub fn advect_first_schedule(
         &self,
         analysis: &Analysis,
@@ -1015,6 +1029,17 @@ impl SynthPlan {
                     .frame_plan(options)
                     .schedule_inner(analysis, false, false);
                 s.extend(resynthesized_levels(&full, top, resynth, 0));
+            }
+            // With `keep_look` a turning flow remakes the advected levels below the
+            // coarsest one every frame (upsampled, corrected without jitter): frame 0
+            // makes them so too, so that frame 1 does not change the look.
+            let coarsest = n - options.levels.clamp(1, n);
+            if options.keep_look && resynth == 0 && coarsest < top {
+                let full = self
+                    .frame_plan(options)
+                    .schedule_inner(analysis, false, false);
+                s.retain(|d| d.level <= coarsest);
+                s.extend(resynthesized_levels(&full, coarsest, top - coarsest, 0));
             }
             s.extend(finest_without_corrections(
                 &self.schedule_inner(analysis, false, false),
