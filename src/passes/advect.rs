@@ -349,11 +349,11 @@ impl AdvectOptions {
     /// threshold of 0.12 for the coarsest of them (about 5 degrees of turning or 12% of
     /// stretch, against 0.5). Measured (forty-eighth session, lavapipe; 256x256, 300
     /// frames of the default vortex, against the defaults): texture energy at frame 300
-    /// over frame 0's gravel 1.15 against 2.50, brick 0.87 against 2.28, grass 0.95
-    /// against 1.92, pink_marble 1.14 against 1.65, craters 1.00 against 0.92;
-    /// flow-warped difference 23-81% higher (27-51% of a resynthesis from scratch's); a
+    /// over frame 0's gravel 1.13 against 2.50, brick 0.86 against 2.28, grass 0.94
+    /// against 1.92, pink_marble 1.09 against 1.65, craters 0.97 against 0.92;
+    /// flow-warped difference 22-81% higher (27-51% of a resynthesis from scratch's); a
     /// uniform flow of whole pixels moves the texture as exactly as by default; a
-    /// 512x512 frame 35-44% of a whole synthesis (README, *Advection*).
+    /// 512x512 frame 38-46% of a whole synthesis against 26-31% (README, *Advection*).
     pub fn keep_look() -> Self {
         Self {
             levels: 4,
