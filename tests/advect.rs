@@ -779,6 +779,21 @@ fn bad_velocities_and_time_steps() {
             },
             "drop --advect-finest",
         ),
+        // `keep_look` remakes the advected levels itself.
+        (
+            AdvectOptions {
+                resynthesize: 2,
+                ..AdvectOptions::keep_look()
+            },
+            "keep_look remakes the advected levels itself",
+        ),
+        (
+            AdvectOptions {
+                upsample_finest: false,
+                ..AdvectOptions::keep_look()
+            },
+            "keep_look remakes the advected levels itself",
+        ),
         // More re-synthesized levels than the pyramid has room for: an error, not fewer.
         (
             AdvectOptions {
@@ -1135,11 +1150,13 @@ fn surface_advection_gpu_matches_cpu() {
     let v = texsyn::surface::flow::atlas_velocity(&prep, &flow, 0.0).unwrap();
     assert!(v.iter().any(|p| p[0] != 0.0 || p[1] != 0.0));
     let q: Vec<[i32; 2]> = v.iter().map(|&p| quantize_velocity(p, 1.0)).collect();
-    // Frame 3 re-synthesizes two levels below the finest (their fills included).
-    for f in 0..3u64 {
+    // Frame 3 re-synthesizes two levels below the finest (their fills included), frame
+    // 4 keeps the look (`keep_look`: remade levels on the atlas).
+    for f in 0..4u64 {
         let o = AdvectOptions {
             resynthesize: if f == 2 { 2 } else { 0 },
-            levels: if f == 2 { 4 } else { o.levels },
+            keep_look: f == 3,
+            levels: if f >= 2 { 4 } else { o.levels },
             ..o
         };
         adv.set_options(o).unwrap();
