@@ -55,6 +55,8 @@ fn main() -> texsyn::Result<()> {
         seed: 4,
         ..SynthParams::default()
     };
+    // `AdvectOptions::keep_look()` would keep the texture's look under the vortex by
+    // remaking it as it turns; the default advects it (README, *Advection*).
     let mut advection = Advection::new(&ctx, synthesizer, &params, AdvectOptions::default())?;
 
     // The application's velocity buffer (vec2<f32> per pixel), updated every frame.
