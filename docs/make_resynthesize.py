@@ -1,9 +1,10 @@
 #!/usr/bin/env python3
 """Regenerates docs/advection_resynthesize.png (README, Advection): frame 300 of the default
-vortex, 256x256, with the levels below the finest advected (the default)
-and with `--keep-look` (the two levels below the finest re-synthesized every frame, the advected
-level above them renewed where it turns by about 5 degrees), for the bundled brick and gravel; next to each, where frame 300 differs from frame 299 moved by the flow (white: a
-change of 1/3 of full scale or more), which is the popping the option costs.
+vortex, 256x256, with the levels below the finest advected (the default) and with
+`--keep-look` (the advected levels below the coarsest one remade wherever the flow turns them,
+the coarsest renewed where it has turned by about 5 degrees), for the bundled brick and gravel;
+next to each, where frame 300 differs from frame 299 moved by the flow (white: a change of 1/3
+of full scale or more), which is the popping the option costs.
 
     cargo build --release && python3 docs/make_resynthesize.py
 

@@ -151,7 +151,7 @@ fn advection_frames_gpu_match_cpu() {
         // re-synthesizes two levels below the finest (their upsampling following the
         // drift that frame 3's uniform flow left). Frames 8 and 9 advect every level
         // under fast uniform flows, so that the coarse levels shift by whole pixels of
-        // their own as the drift crosses them. Frame 3 keeps the look (`keep_look`:
+        // their own as the drift crosses them. Frame 4 keeps the look (`keep_look`:
         // the levels below the coarsest advected one remade where the vortex turns them).
         let o = AdvectOptions {
             interpolate_sets: f % 2 == 1,
@@ -159,9 +159,9 @@ fn advection_frames_gpu_match_cpu() {
             skip_coherent: f != 1,
             upsample_finest: f != 4,
             resynthesize: if f == 5 { 2 } else { 0 },
-            keep_look: f == 2,
+            keep_look: f == 3,
             levels: match f {
-                2 | 5 => 4,
+                3 | 5 => 4,
                 7 | 8 => 16,
                 _ => opts.levels,
             },
@@ -435,7 +435,8 @@ fn uniform_flow_of_whole_pixels_translates_exactly() {
                 assert!(
                     warped < ratio * still && same > want,
                     "upsampled finest {upsample_finest}, re-synthesized {resynthesize}, \
-                     passes {passes}: warped {warped}, unwarped {still}, identical {same}"
+                     keep_look {keep_look}, passes {passes}: warped {warped}, unwarped \
+                     {still}, identical {same}"
                 );
                 prev = cur;
             }
@@ -779,7 +780,14 @@ fn bad_velocities_and_time_steps() {
             },
             "drop --advect-finest",
         ),
-        // `keep_look` remakes the advected levels itself.
+        // `keep_look` remakes the advected levels itself, below the coarsest one.
+        (
+            AdvectOptions {
+                levels: 2,
+                ..AdvectOptions::keep_look()
+            },
+            "use at least 3 levels",
+        ),
         (
             AdvectOptions {
                 resynthesize: 2,
@@ -936,6 +944,23 @@ fn advect_cli() {
         assert!(frames.join(f).exists(), "{f} missing: {stderr}");
     }
     assert!(!frames.join("frame_00001.png").exists());
+    // --keep-look runs end to end (its frames are compared with the CPU in the library).
+    let kept = dir.path("kept");
+    let o = run(&[
+        "advect",
+        "assets/gravel.png",
+        "--flow",
+        "vortex",
+        "--frames",
+        "2",
+        "--size",
+        "48",
+        "--keep-look",
+        "-o",
+        kept.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(kept.join("frame_00002.png").exists());
     assert!(
         stderr.contains("cost per frame") && stderr.contains("warped by the flow"),
         "{stderr}"
@@ -1094,7 +1119,7 @@ fn advect_cli() {
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
         .collect();
     left.sort();
-    assert_eq!(left, ["anim.png", "bunny.gif", "frames"]);
+    assert_eq!(left, ["anim.png", "bunny.gif", "frames", "kept"]);
     // eval reads `--flow image:FILE` when it runs, too.
     let o = run(&[
         "eval",
@@ -1399,7 +1424,7 @@ fn resynthesized_levels_keep_the_texture_energy_under_a_vortex() {
     // 0.0050, 19.8 (at the default speed and 256x256 it stays within 15% on gravel).
     let (advected, resynthesized, kept) = (figures[0], figures[1], figures[2]);
     for f in [resynthesized, kept] {
-        assert!(f.1 < 1.7 * f.0 && f.1 < 0.65 * advected.1, "{figures:?}");
+        assert!(f.1 < 1.7 * f.0 && f.1 < 0.6 * advected.1, "{figures:?}");
         assert!(f.2 < 1.6 * advected.2, "{figures:?}");
     }
     assert!(kept.1 < 1.4 * kept.0, "{figures:?}");

@@ -65,8 +65,9 @@ pub struct AdvectArgs {
     /// --threshold 0.12, the coarsest level's threshold here; both can still be given).
     /// The texture energy stays near frame 0's under a vortex, but the texture is
     /// continuously remade as it moves (over tens of frames most of it is new); a uniform
-    /// flow still moves it exactly. Without it the texture is advected (the paper's
-    /// scheme) and breaks up as it turns
+    /// flow still moves it exactly (where the field is constant). Every advected level is
+    /// corrected in full every frame (--correct-coherent implied). Without it the texture
+    /// is advected (the paper's scheme) and breaks up as it turns
     #[arg(long, conflicts_with_all = ["advect_finest", "resynthesize"])]
     pub keep_look: bool,
 

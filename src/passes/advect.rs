@@ -327,7 +327,8 @@ pub struct AdvectOptions {
     /// Jacobian off by more than [`KEEP_LOOK_REMAKE_THRESHOLD`], and kept as advected
     /// elsewhere: a turning flow remakes them every frame, so the texture is neither
     /// turned nor broken up and its energy stays near frame 0's, while a uniform flow
-    /// still moves them exactly. Every advected level runs all its correction subpasses
+    /// still moves them exactly (where `J` is constant: along a varying field or on an
+    /// atlas, moving through `J` distorts them, and they are remade there too). Every advected level runs all its correction subpasses
     /// every frame, none skipping coherent pixels, and frame 0 makes the levels below
     /// the coarsest advected one as the frames do (no jitter, the frames' passes). The
     /// price: under a turning flow the texture is continuously remade as it moves (over
@@ -337,7 +338,7 @@ pub struct AdvectOptions {
 }
 
 /// The distortion threshold (Jacobian units) beyond which [`AdvectOptions::keep_look`]
-/// remakes a pixel of the advected levels below the coarsest one: about 0.3 degrees of
+/// remakes a pixel of the advected levels below the coarsest one: about 0.2 degrees of
 /// turning. Below the 1/256-pixel rounding of neighbouring coordinates (which stays
 /// under it at every level) nothing is remade, so rigid motion keeps the advected
 /// texture; the default vortex (0.01 radian per frame) remakes every pixel every frame.
@@ -413,6 +414,13 @@ impl AdvectOptions {
                 self.resynthesize
             )));
         }
+        if self.keep_look && self.levels < 3 {
+            return Err(Error::InvalidParameter(format!(
+                "keep_look on {} levels: it remakes the advected levels below the coarsest \
+                 one, so use at least 3 levels (--levels; the finest is upsampled)",
+                self.levels
+            )));
+        }
         if self.keep_look && (self.resynthesize > 0 || !self.upsample_finest) {
             return Err(Error::InvalidParameter(
                 "keep_look remakes the advected levels itself: it needs the finest level \
@@ -439,6 +447,12 @@ impl AdvectOptions {
     /// one advected): otherwise fewer would be re-synthesized than asked, silently.
     pub fn check_for_pyramid(&self, pyramid_levels: usize) -> Result<()> {
         self.check()?;
+        if self.keep_look && pyramid_levels < 3 {
+            return Err(Error::InvalidParameter(format!(
+                "keep_look needs at least 3 levels, but this synthesis has {pyramid_levels}: \
+                 a larger output or exemplar has more levels"
+            )));
+        }
         if self.resynthesize > 0 && self.resynthesize + 2 > pyramid_levels {
             return Err(Error::InvalidParameter(format!(
                 "{} re-synthesized levels, but this synthesis has {} levels: at most {} \
