@@ -962,7 +962,9 @@ fn advect_cli() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(kept.join("frame_00002.png").exists());
     assert!(
-        stderr.contains("cost per frame") && stderr.contains("warped by the flow"),
+        stderr.contains("cost per frame")
+            && stderr.contains("warped by the flow")
+            && stderr.contains("(last / first: x"),
         "{stderr}"
     );
     // eval --flow compares consecutive frames: frames 0, 2, 4 are refused.

@@ -639,7 +639,25 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
         .iter()
         .map(|(t, e)| format!("frame {t}: {e:.5}"))
         .collect();
-    ui.info(format!("texture energy: {}", energies.join(", ")));
+    // The last frame's energy over the first's: how much the texture degraded.
+    let rise = match (report.energy.first(), report.energy.last()) {
+        (Some(&(t0, e0)), Some(&(t1, e1))) if t1 > t0 && e0 > 0.0 => Some(e1 / e0),
+        _ => None,
+    };
+    ui.info(match rise {
+        Some(r) => format!(
+            "texture energy: {} (last / first: x{r:.2})",
+            energies.join(", ")
+        ),
+        None => format!("texture energy: {}", energies.join(", ")),
+    });
+    if let Some(r) = rise.filter(|&r| r > 1.2 && !args.keep_look) {
+        ui.info(format!(
+            "  the texture energy rose {r:.2}x: the flow breaks the texture up as it turns or \
+             stretches it; --keep-look remakes it as it moves and keeps its look (README, \
+             Advection)"
+        ));
+    }
     ui.info(format!(
         "sharpness (high-frequency energy / exemplar's): first {:.3}, last {:.3}",
         report.sharpness.first().copied().unwrap_or(0.0),
