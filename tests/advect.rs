@@ -202,13 +202,33 @@ fn advection_frames_gpu_match_cpu() {
     let mut adv = Advection::new(ctx(), synth.clone(), &params, opts).unwrap();
     let plan: SynthPlan = adv.plan().clone();
     let mut cpu = vec![[0i32; 2]; plan.coord_buffer_len() as usize];
-    run_cpu_frame(&a, &plan.advect_first_schedule(&a, &opts), &mut cpu, &jac, &[], &[]);
-    assert!(adv.read_coords(ctx()).unwrap() == cpu, "keep_look: frame 0 differs");
+    run_cpu_frame(
+        &a,
+        &plan.advect_first_schedule(&a, &opts),
+        &mut cpu,
+        &jac,
+        &[],
+        &[],
+    );
+    assert!(
+        adv.read_coords(ctx()).unwrap() == cpu,
+        "keep_look: frame 0 differs"
+    );
     let v = flows[0].sample(48, 40, 0.0).unwrap();
     adv.step(ctx(), &v, 1.0).unwrap();
     let q: Vec<[i32; 2]> = v.iter().map(|&v| quantize_velocity(v, 1.0)).collect();
-    run_cpu_frame(&a, &plan.advect_schedule(&a, &opts, 0), &mut cpu, &jac, &[], &q);
-    assert!(adv.read_coords(ctx()).unwrap() == cpu, "keep_look: frame 1 differs");
+    run_cpu_frame(
+        &a,
+        &plan.advect_schedule(&a, &opts, 0),
+        &mut cpu,
+        &jac,
+        &[],
+        &q,
+    );
+    assert!(
+        adv.read_coords(ctx()).unwrap() == cpu,
+        "keep_look: frame 1 differs"
+    );
     let opts = AdvectOptions::default();
     // The caller-owned GPU velocity path gives the same frame as host velocities.
     let v = Flow::Vortex {
@@ -385,7 +405,11 @@ fn uniform_flow_of_whole_pixels_translates_exactly() {
                 passes,
                 resynthesize,
                 keep_look,
-                levels: if keep_look { 4 } else { 2 + resynthesize.max(1) },
+                levels: if keep_look {
+                    4
+                } else {
+                    2 + resynthesize.max(1)
+                },
                 ..Default::default()
             };
             let mut adv = Advection::new(ctx(), synth.clone(), &params, o).unwrap();
