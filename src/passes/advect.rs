@@ -328,10 +328,10 @@ pub struct AdvectOptions {
     /// elsewhere: a turning flow remakes them every frame, so the texture is neither
     /// turned nor broken up and its energy stays near frame 0's, while a uniform flow
     /// still moves them exactly (where `J` is constant: along a varying field or on an
-    /// atlas, moving through `J` distorts them, and they are remade there too). Every advected level runs all its correction subpasses
-    /// every frame, none skipping coherent pixels, and frame 0 makes the levels below
-    /// the coarsest advected one as the frames do (no jitter, the frames' passes). The
-    /// price: under a turning flow the texture is continuously remade as it moves (over
+    /// atlas, moving through `J` distorts them, and they are remade there too). Every
+    /// advected level runs all its correction subpasses every frame, none skipping
+    /// coherent pixels, and frame 0 makes the levels below the coarsest advected one as
+    /// the frames do (no jitter, the frames' passes). The price: under a turning flow the texture is continuously remade as it moves (over
     /// tens of frames most of it is new, and whole regions change at once where the
     /// coarse level is renewed), and a frame costs more. Off by default.
     pub keep_look: bool,

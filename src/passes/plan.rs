@@ -1017,34 +1017,32 @@ impl SynthPlan {
         // Full subpasses: the flow carries the margins into view. No pixel skipped and
         // no stamp written (see `schedule_inner`): the frames keep their own data after
         // the coordinates (`flag_base`).
-        let mut s = self.schedule_inner(analysis, false, false);
+        let synthesis = self.schedule_inner(analysis, false, false);
+        let mut s = synthesis.clone();
         let n = self.levels.len();
         if options.upsample_finest && n >= 2 {
             let resynth = options.resynthesize.min(n - 2);
             let top = n - 2 - resynth;
             let gather = s.pop();
-            s.retain(|d| d.level <= top);
-            if resynth > 0 {
-                let full = self
-                    .frame_plan(options)
-                    .schedule_inner(analysis, false, false);
-                s.extend(resynthesized_levels(&full, top, resynth, 0));
-            }
-            // With `keep_look` a turning flow remakes the advected levels below the
-            // coarsest one every frame (upsampled, corrected without jitter): frame 0
-            // makes them so too, so that frame 1 does not change the look.
+            // The levels the frames remake every frame are made as the frames make them
+            // (upsampled, corrected with the frames' passes, no jitter), so that frame 1
+            // does not change the look: the re-synthesized levels below `top`, or with
+            // `keep_look` the advected levels below the coarsest one (a turning flow
+            // remakes them every frame).
             let coarsest = n - options.levels.clamp(1, n);
-            if options.keep_look && resynth == 0 && coarsest < top {
+            let (kept, remade) = if options.keep_look && resynth == 0 && coarsest < top {
+                (coarsest, top - coarsest)
+            } else {
+                (top, resynth)
+            };
+            s.retain(|d| d.level <= kept);
+            if remade > 0 {
                 let full = self
                     .frame_plan(options)
                     .schedule_inner(analysis, false, false);
-                s.retain(|d| d.level <= coarsest);
-                s.extend(resynthesized_levels(&full, coarsest, top - coarsest, 0));
+                s.extend(resynthesized_levels(&full, kept, remade, 0));
             }
-            s.extend(finest_without_corrections(
-                &self.schedule_inner(analysis, false, false),
-                n - 1,
-            ));
+            s.extend(finest_without_corrections(&synthesis, n - 1));
             s.extend(gather);
         }
         if let Some(g) = s.last_mut() {
