@@ -88,6 +88,24 @@ fn warped_diff(
     sum / n.max(1) as f64
 }
 
+/// Advances `adv` by frame `frame` (its own options, host velocities `v`) on the GPU and
+/// `cpu` by the same frame on the CPU mirror; whether their coordinates agree.
+fn step_matches_cpu(
+    adv: &mut Advection,
+    a: &Analysis,
+    frame: u64,
+    cpu: &mut [[i32; 2]],
+    v: &[[f32; 2]],
+    dt: f32,
+) -> bool {
+    adv.step(ctx(), v, dt).unwrap();
+    let plan = adv.plan();
+    let q: Vec<[i32; 2]> = v.iter().map(|&v| quantize_velocity(v, dt)).collect();
+    let schedule = plan.advect_schedule(a, &adv.options(), frame);
+    run_cpu_frame(a, &schedule, cpu, &plan.jacobians(), &[], &q);
+    adv.read_coords(ctx()).unwrap() == cpu
+}
+
 #[test]
 fn advection_frames_gpu_match_cpu() {
     let (a, synth, _) = setup(32);
@@ -200,11 +218,10 @@ fn advection_frames_gpu_match_cpu() {
     // frames do; GPU = CPU on it and on a frame after it.
     let opts = AdvectOptions::keep_look();
     let mut adv = Advection::new(ctx(), synth.clone(), &params, opts).unwrap();
-    let plan: SynthPlan = adv.plan().clone();
-    let mut cpu = vec![[0i32; 2]; plan.coord_buffer_len() as usize];
+    let mut cpu = vec![[0i32; 2]; adv.plan().coord_buffer_len() as usize];
     run_cpu_frame(
         &a,
-        &plan.advect_first_schedule(&a, &opts),
+        &adv.plan().advect_first_schedule(&a, &opts),
         &mut cpu,
         &jac,
         &[],
@@ -215,18 +232,8 @@ fn advection_frames_gpu_match_cpu() {
         "keep_look: frame 0 differs"
     );
     let v = flows[0].sample(48, 40, 0.0).unwrap();
-    adv.step(ctx(), &v, 1.0).unwrap();
-    let q: Vec<[i32; 2]> = v.iter().map(|&v| quantize_velocity(v, 1.0)).collect();
-    run_cpu_frame(
-        &a,
-        &plan.advect_schedule(&a, &opts, 0),
-        &mut cpu,
-        &jac,
-        &[],
-        &q,
-    );
     assert!(
-        adv.read_coords(ctx()).unwrap() == cpu,
+        step_matches_cpu(&mut adv, &a, 0, &mut cpu, &v, 1.0),
         "keep_look: frame 1 differs"
     );
     let opts = AdvectOptions::default();
@@ -490,7 +497,6 @@ fn periodic_outputs_wrap_around_under_a_flow() {
     }
     .sample(w, h, 0.0)
     .unwrap();
-    let q: Vec<[i32; 2]> = v.iter().map(|&v| quantize_velocity(v, 1.0)).collect();
     for upsample_finest in [false, true] {
         let o = AdvectOptions {
             upsample_finest,
@@ -498,23 +504,11 @@ fn periodic_outputs_wrap_around_under_a_flow() {
             ..AdvectOptions::default()
         };
         let mut adv = Advection::new(ctx(), synth.clone(), &params, o).unwrap();
-        let plan: SynthPlan = adv.plan().clone();
-        let jac = plan.jacobians();
         let mut cpu = adv.read_coords(ctx()).unwrap();
         let mut prev = adv.read_rgba8(ctx()).unwrap();
         for t in 0..3u64 {
-            adv.step(ctx(), &v, 1.0).unwrap();
-            run_cpu_frame(
-                &a,
-                &plan.advect_schedule(&a, &o, t),
-                &mut cpu,
-                &jac,
-                &[],
-                &q,
-            )
-            .unwrap();
             assert!(
-                adv.read_coords(ctx()).unwrap() == cpu,
+                step_matches_cpu(&mut adv, &a, t, &mut cpu, &v, 1.0),
                 "upsampled finest {upsample_finest}: frame {} differs from the CPU's",
                 t + 1
             );
