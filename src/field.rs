@@ -411,6 +411,42 @@ pub fn rasterize_region(
     .concat()
 }
 
+/// [`rasterize_region`] for a torus standing for an output `scale` times its size on
+/// each axis ([`crate::passes::plan::Torus`]): pixel `p` stands for output position
+/// `(t + 0.5) scale - 0.5`, `t` its centre in torus pixels, and takes the field there
+/// times `diag(scale)` (the texture advances per torus pixel what it advances over
+/// `scale` output pixels).
+pub fn rasterize_region_scaled(
+    field: &Field,
+    origin: [i32; 2],
+    size: [u32; 2],
+    steps: u32,
+    scale: [f64; 2],
+) -> Vec<[i32; 4]> {
+    let f = (1u64 << steps.min(62)) as f64;
+    let w = size[0] as usize;
+    let at = |x: f64, y: f64| {
+        let m = field.at((x + 0.5) * scale[0] - 0.5, (y + 0.5) * scale[1] - 0.5);
+        let d = [[scale[0], 0.0], [0.0, scale[1]]];
+        quantize(&clamp_singular(&mul(&m, &d)))
+    };
+    if let Field::Constant { .. } = field {
+        return vec![at(0.0, 0.0); w * size[1] as usize];
+    }
+    crate::analysis::par_ranges(size[1] as usize, 0, |rows| {
+        let mut out = Vec::with_capacity(rows.len() * w);
+        for y in rows {
+            let fy = (origin[1] as i64 + y as i64) as f64 * f + 0.5 * f - 0.5;
+            for x in 0..w as i64 {
+                let fx = (origin[0] as i64 + x) as f64 * f + 0.5 * f - 0.5;
+                out.push(at(fx, fy));
+            }
+        }
+        out
+    })
+    .concat()
+}
+
 /// A direction-and-scale field from an image the size of the output: channel 0 is the
 /// texture's rotation (0..1 -> 0..2 pi), channel 1 its magnification on a log scale
 /// (0..1 -> 1/8..8, 0.5 = 1); a grey image (grey+alpha, a 1-channel EXR) is rotation

@@ -522,17 +522,16 @@ fn aniso_perspective_projected_distance_matches_cpu() {
 
 #[test]
 fn tileable_output_matches_cpu_and_wraps() {
-    // Odd periods at some levels (45 -> 23 -> 12 ...), an anisometric field too.
-    for field in [
-        None,
-        Some(Field::Constant {
-            angle: 0.4,
-            scale: [1.1, 1.1],
-            shear: 0.0,
-        }),
-    ] {
+    // Odd periods at coarser levels (44 -> 22 -> 11 -> 6 -> 3), an anisometric field
+    // too; 45 is made on a 44 torus (below), with the field too.
+    let rotated = Some(Field::Constant {
+        angle: 0.4,
+        scale: [1.1, 1.1],
+        shear: 0.0,
+    });
+    for (width, field) in [(44, None), (44, rotated.clone()), (45, rotated)] {
         let params = SynthParams {
-            width: 45,
+            width,
             height: 32,
             seed: 4,
             tileable_output: true,
@@ -541,6 +540,33 @@ fn tileable_output_matches_cpu_and_wraps() {
         };
         compare_pass_by_pass(analysis(false, 2), &params);
     }
+    // Sides that are not multiples of 4 are made on a torus (44x32 here, 52x36 below)
+    // and resampled: the resampling pass matches its mirror, and so does the whole
+    // output, colours included (the nearest texel along no field).
+    let torus = SynthParams {
+        width: 50,
+        height: 37,
+        seed: 2,
+        tileable_output: true,
+        ..Default::default()
+    };
+    let a = analysis(true, 2);
+    let plan = SynthPlan::new(&a, &torus).unwrap();
+    let t = plan.torus.expect("made on a torus");
+    assert_eq!(
+        (t.period, t.output, t.isometric),
+        ([52, 36], [50, 37], true)
+    );
+    compare_pass_by_pass(a.clone(), &torus);
+    let gpu = GpuSynthesizer::new(ctx(), a.clone()).unwrap();
+    let out = gpu.synthesize_to_host(ctx(), &torus).unwrap();
+    assert_eq!(out, synthesize_cpu(&a, &torus).unwrap());
+    assert_eq!((out.width, out.height, out.coords.len()), (50, 37, 50 * 37));
+    // Advection keeps the output's own periods.
+    assert!(SynthPlan::with_torus(&a, &torus, false)
+        .unwrap()
+        .torus
+        .is_none());
     let bad = SynthParams {
         width: 16,
         height: 16,

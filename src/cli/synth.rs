@@ -615,15 +615,13 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
         standalone: args.standalone,
     };
     // Validate the parameters before uploading anything.
-    texsyn::passes::SynthPlan::new(&analysis, &params)?;
-    if args.tileable_output && (width % 4 != 0 || height % 4 != 0) {
-        // Every level's period is half the finer one's, rounded up: an odd period (or an
-        // odd half) cannot be upsampled coherently across the wrap.
+    if let Some(t) = texsyn::passes::SynthPlan::new(&analysis, &params)?.torus {
+        // Each level's period is half the finer one's, rounded up: an odd period (or an
+        // odd half) cannot be upsampled coherently across the wrap (`Torus`).
         ui.info(format!(
-            "note: a tileable side that is not a multiple of 4 shows a faint seam where the \
-             tiles meet ({width}x{height}; e.g. {}x{} tiles cleanly)",
-            width.next_multiple_of(4),
-            height.next_multiple_of(4)
+            "tileable: synthesized on a {}x{} torus (sides that are multiples of 4 wrap \
+             cleanly) and resampled to {width}x{height}",
+            t.period[0], t.period[1]
         ));
     }
 

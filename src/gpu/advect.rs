@@ -63,7 +63,7 @@ impl Advection {
         crate::gpu::synth::check_device_limits(&ctx.limits())?;
         let params = Self::synthesis_params(params);
         options.check()?;
-        let plan = SynthPlan::new(synthesizer.analysis(), &params)?;
+        let plan = SynthPlan::with_torus(synthesizer.analysis(), &params, false)?;
         options.check_for_pyramid(plan.levels.len())?;
         // The synthesis of frame 0 has the same limits (texture sides, buffers).
         synthesizer.check_output(ctx, &plan)?;
@@ -277,7 +277,7 @@ impl Advection {
     /// is refused).
     pub fn set_params(&mut self, params: &SynthParams) -> Result<()> {
         let params = Self::synthesis_params(params);
-        let plan = SynthPlan::new(self.synthesizer.analysis(), &params)?;
+        let plan = SynthPlan::with_torus(self.synthesizer.analysis(), &params, false)?;
         let same_regions = plan.levels.len() == self.plan.levels.len()
             && plan
                 .levels

@@ -461,6 +461,7 @@ pub(crate) struct PassPipelines {
     advect: LazyPipeline,
     drift: LazyPipeline,
     distortion: LazyPipeline,
+    resample: LazyPipeline,
 }
 
 impl std::fmt::Debug for PassPipelines {
@@ -533,6 +534,7 @@ impl PassPipelines {
             advect: LazyPipeline::new(&shaders::ADVECT),
             drift: LazyPipeline::new(&shaders::DRIFT),
             distortion: LazyPipeline::new(&shaders::DISTORTION),
+            resample: LazyPipeline::new(&shaders::RESAMPLE),
         }
     }
 
@@ -550,6 +552,7 @@ impl PassPipelines {
             PassKind::Advect => &self.advect,
             PassKind::Drift => &self.drift,
             PassKind::Distortion => &self.distortion,
+            PassKind::Resample => &self.resample,
         };
         lazy.get(ctx, &self.pipeline_layout, variant.for_kind(kind))
     }
@@ -1240,7 +1243,13 @@ impl GpuSynthesizer {
     fn jacobian_buffers(&self, ctx: &GpuContext, plan: &SynthPlan) -> (wgpu::Buffer, wgpu::Buffer) {
         let key: JacobianKey = (
             plan.params.field.clone(),
-            plan.levels.iter().map(|l| (l.origin, l.size)).collect(),
+            plan.levels
+                .iter()
+                .map(|l| (l.origin, l.size))
+                // A torus's output region (its Jacobians are the field's, the levels'
+                // scaled).
+                .chain(plan.torus.map(|t| ([-1, -1], t.output)))
+                .collect(),
             plan.params
                 .surface
                 .as_ref()
@@ -1624,10 +1633,8 @@ impl GpuSynthesizer {
         // Everything comes back in one read-back buffer: check it before any work.
         {
             let pitch = |w: u32| (w as u64 * 4).next_multiple_of(256);
-            let fin = plan
-                .levels
-                .last()
-                .map_or(0, |l| l.size[0] as u64 * l.size[1] as u64);
+            let (_, out_row, out_offset) = plan.output_region();
+            let fin = (out_offset[1] + h) as u64 * out_row as u64;
             let count = maps.len() as u64 + magnify.is_some() as u64;
             let need = (pitch(w) * h as u64 + fin * 8).next_multiple_of(256)
                 + pitch(bw) * bh as u64 * count;
@@ -1711,8 +1718,10 @@ impl GpuSynthesizer {
             })?,
             None => self.record_reporting(ctx, &mut encoder, &plan, &schedule, &view, &targets)?,
         };
-        let fin = plan.levels.last().unwrap();
-        let fin_bytes = fin.size[0] as u64 * fin.size[1] as u64 * 8;
+        // The output's coordinates: the finest level's region, or a torus's resampled
+        // output (`SynthPlan::output_region`), whole rows from the window's first.
+        let (out_base, out_row, out_offset) = plan.output_region();
+        let fin_bytes = (out_offset[1] + h) as u64 * out_row as u64 * 8;
         let pitch =
             |w: u32| (w as u64 * 4).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT as u64);
         let (row, big_row) = (pitch(w), pitch(bw));
@@ -1757,7 +1766,7 @@ impl GpuSynthesizer {
             copy_image(&mut encoder, &texture, &rb, 0, (w, h, row));
             encoder.copy_buffer_to_buffer(
                 &coords,
-                fin.coord_base as u64 * 8,
+                out_base as u64 * 8,
                 &rb,
                 image_bytes,
                 fin_bytes,
@@ -1800,8 +1809,7 @@ impl GpuSynthesizer {
             bytemuck::cast_slice(&bytes[image_bytes as usize..(image_bytes + fin_bytes) as usize]);
         let mut window = Vec::with_capacity((w * h) as usize);
         for y in 0..h {
-            let start =
-                ((y + plan.window_offset[1]) * fin.size[0] + plan.window_offset[0]) as usize;
+            let start = ((y + out_offset[1]) * out_row + out_offset[0]) as usize;
             window.extend_from_slice(&level_coords[start..start + w as usize]);
         }
         Ok((

@@ -13,6 +13,7 @@ pub mod gather_map;
 pub mod jitter;
 pub mod magnify;
 pub mod plan;
+pub mod resample;
 pub mod upsample;
 pub mod upsample_aniso;
 
@@ -135,6 +136,10 @@ pub fn run_cpu_frame(
             }
             PassKind::Distortion => {
                 advect::distortion(&d.params, coords, jac, surface);
+                None
+            }
+            PassKind::Resample => {
+                resample::run(&d.params, coords, jac);
                 None
             }
             PassKind::Gather => Some(gather::run(&d.params, coords, &analysis.colors)),

@@ -80,11 +80,10 @@ pub struct SynthParams {
     pub field: Option<Field>,
     /// Synthesize one period of a texture that tiles seamlessly (`width` x `height`):
     /// every level is a torus (period `ceil(size / 2^steps)`), neighbours wrap around.
-    /// The window origin must be 0. Sides that are multiples of 4 tile cleanly; an odd
-    /// period at the finest or second-finest level cannot be upsampled coherently across
-    /// the wrap, so other sides show a faint seam there (measured, leopard, seeds 1-3:
-    /// wrap-seam ratio 0.77-1.12 at 64 and 128, 1.08-1.50 at 66 and 130, 1.55-1.75 at 65
-    /// and 129; about 3 without this option).
+    /// The window origin must be 0. Sides that are not multiples of 4 (from
+    /// [`TORUS_MIN_SIDE`] up) are synthesized on a torus whose sides are, then resampled
+    /// to the output's size ([`Torus`]): an odd period at the finest or second-finest
+    /// level cannot be upsampled coherently across the wrap, and left a faint seam there.
     pub tileable_output: bool,
     /// Atlas synthesis (surface texture, paper section 6): the output is the whole
     /// atlas (`width` x `height` = the domain's finest level), the Jacobians come from
@@ -255,6 +254,52 @@ pub struct SynthPlan {
     pub coord_count: u64,
     /// Atlas synthesis: each level's mask and indirection entries in the surface buffer.
     pub surface_layout: Vec<SurfaceLayout>,
+    /// A tileable output whose sides are not all multiples of 4 is synthesized on a
+    /// torus whose sides are, then resampled to the output's size ([`Torus`]).
+    pub torus: Option<Torus>,
+}
+
+/// How a [`SynthParams::tileable_output`] whose sides are not multiples of 4 is made.
+/// Each level's period is half the finer one's, rounded up, and an odd period at the
+/// finest or second-finest level cannot be upsampled coherently across the wrap (the
+/// children of an odd number of parents are one more than the period): the texture
+/// jumped by a pixel there, a faint seam where the tiles meet (wrap-seam ratio 1.55-1.75
+/// at 65 and 129, leopard, seeds 1-3). So the levels are synthesized on a torus of
+/// `period` (each side the nearest multiple of 4, [`torus_period`]) along the field
+/// scaled by `output / period` on each axis, and a resampling pass (`resample.wgsl`)
+/// maps it onto the `output` grid: output pixel `x` takes the torus coordinate nearest to
+/// `u = (x + 0.5) period / output - 0.5` plus `J' (u - q)`, so that the texture advances
+/// exactly as the field asks per output pixel and the period is the output's. The
+/// coordinates are continuous (an anisometric plan, the identity field where none is
+/// given); along no field the gather reads the nearest texel, so coherent patches are
+/// exact copies of the exemplar, as in isometric synthesis.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Torus {
+    /// Sides of the synthesized torus (multiples of 4).
+    pub period: [u32; 2],
+    /// Sides of the output (`SynthParams::width`, `height`).
+    pub output: [u32; 2],
+    /// Where the output's resampled coordinates start in the coordinate array (after
+    /// every level's).
+    pub base: u32,
+    /// The caller asked for isometric synthesis (no field): the gather reads the
+    /// nearest texel.
+    pub isometric: bool,
+}
+
+/// Outputs of at least this many pixels a side that are not multiples of 4 are made on a
+/// torus ([`Torus`]); smaller ones would change the synthesized scale by more than 3/8.
+pub const TORUS_MIN_SIDE: u32 = 8;
+
+/// The torus side a tileable output side `n` is synthesized on: `n` itself if it is a
+/// multiple of 4 (or under [`TORUS_MIN_SIDE`]), else the nearest multiple of 4 (the
+/// larger of two equally near ones).
+pub fn torus_period(n: u32) -> u32 {
+    if n % 4 == 0 || n < TORUS_MIN_SIDE {
+        n
+    } else {
+        (n + 2) / 4 * 4
+    }
 }
 
 fn floor_div2(x: i32) -> i32 {
@@ -262,7 +307,19 @@ fn floor_div2(x: i32) -> i32 {
 }
 
 impl SynthPlan {
+    /// The plan of a synthesis ([`Self::with_torus`] with the torus allowed).
     pub fn new(analysis: &Analysis, params: &SynthParams) -> Result<Self> {
+        Self::with_torus(analysis, params, true)
+    }
+
+    /// The plan; with `allow_torus`, a tileable output whose sides are not multiples of 4
+    /// is made on a torus and resampled ([`Torus`]). Advection keeps every level at the
+    /// output's own periods (its frames move the levels themselves).
+    pub fn with_torus(
+        analysis: &Analysis,
+        params: &SynthParams,
+        allow_torus: bool,
+    ) -> Result<Self> {
         if params.width == 0 || params.height == 0 {
             return Err(Error::InvalidParameter(format!(
                 "output size {}x{}: width and height must be at least 1",
@@ -356,19 +413,41 @@ impl SynthPlan {
         };
         // Walk from the finest level to the coarsest: `need` is the half-open absolute
         // region whose values must be exact; the computed region adds the margin.
-        let (mut lo, mut hi) = (
-            params.origin,
-            [
-                params.origin[0] + params.width as i32,
-                params.origin[1] + params.height as i32,
-            ],
-        );
         if params.tileable_output && params.origin != [0, 0] {
             return Err(Error::InvalidParameter(
                 "a tileable output is one period of the texture: its window origin must be 0,0"
                     .into(),
             ));
         }
+        let period = [torus_period(params.width), torus_period(params.height)];
+        let torus = allow_torus
+            && params.tileable_output
+            && params.surface.is_none()
+            && period != [params.width, params.height];
+        // A torus is synthesized along a field (the identity if none is given), scaled in
+        // `jacobians`: the plan's parameters say anisometric.
+        let isometric = params.field.is_none();
+        let params = &if torus && isometric {
+            SynthParams {
+                field: Some(Field::Constant {
+                    angle: 0.0,
+                    scale: [1.0, 1.0],
+                    shear: 0.0,
+                }),
+                ..params.clone()
+            }
+        } else {
+            params.clone()
+        };
+        let (w, h) = if torus {
+            (period[0], period[1])
+        } else {
+            (params.width, params.height)
+        };
+        let (mut lo, mut hi) = (
+            params.origin,
+            [params.origin[0] + w as i32, params.origin[1] + h as i32],
+        );
         if let Some(d) = &params.surface {
             if params.field.is_some() || params.tileable_output || params.origin != [0, 0] {
                 return Err(Error::InvalidParameter(
@@ -455,6 +534,16 @@ impl SynthPlan {
             });
             base += size[0] as u64 * size[1] as u64;
         }
+        let torus = torus.then(|| {
+            let t = Torus {
+                period,
+                output: [params.width, params.height],
+                base: base as u32,
+                isometric,
+            };
+            base += params.width as u64 * params.height as u64;
+            t
+        });
         if base > u32::MAX as u64 / 2 {
             return Err(Error::InvalidParameter(format!(
                 "output {}x{} is too large for one synthesis; synthesize it in windows",
@@ -499,6 +588,7 @@ impl SynthPlan {
             window_offset,
             coord_count: base,
             surface_layout,
+            torus,
         })
     }
 
@@ -591,7 +681,9 @@ impl SynthPlan {
     /// whose field is the identity transform (advection without a field), not on a
     /// surface. The GPU passes then use the constant (`IDENTITY_J`), the same values.
     pub fn identity_jacobians(&self) -> bool {
-        self.params.surface.is_none() && self.params.field.as_ref().is_some_and(Field::is_identity)
+        self.params.surface.is_none()
+            && self.torus.is_none()
+            && self.params.field.as_ref().is_some_and(Field::is_identity)
     }
 
     pub fn jacobians(&self) -> Vec<[i32; 4]> {
@@ -606,15 +698,56 @@ impl SynthPlan {
         };
         let last = self.levels.len() as u32 - 1;
         let mut out = Vec::with_capacity(self.coord_count as usize);
+        // On a torus, the field at the output position each torus pixel stands for,
+        // scaled by output / period (see `Torus`); then the output's own.
+        let scale = self.torus.map(|t| {
+            [
+                t.output[0] as f64 / t.period[0] as f64,
+                t.output[1] as f64 / t.period[1] as f64,
+            ]
+        });
         for (i, l) in self.levels.iter().enumerate() {
-            out.extend(field::rasterize_region(
-                f,
-                l.origin,
-                l.size,
-                last - i as u32,
-            ));
+            out.extend(match scale {
+                Some(k) => field::rasterize_region_scaled(f, l.origin, l.size, last - i as u32, k),
+                None => field::rasterize_region(f, l.origin, l.size, last - i as u32),
+            });
+        }
+        if let Some(t) = &self.torus {
+            out.extend(field::rasterize_region(f, [0, 0], t.output, 0));
         }
         out
+    }
+
+    /// Where the output's coordinates lie: the start of their region in the coordinate
+    /// array, its row length, and the window's offset in it (the finest level's region,
+    /// or a torus's resampled output).
+    pub fn output_region(&self) -> (u32, u32, [u32; 2]) {
+        match &self.torus {
+            Some(t) => (t.base, t.output[0], [0, 0]),
+            None => {
+                let fin = self.levels.last().expect("a plan has levels");
+                (fin.coord_base, fin.size[0], self.window_offset)
+            }
+        }
+    }
+
+    /// A torus's resampling and gather parameters: the output's region (`size`,
+    /// `coord_base`) read from the finest level's (`parent_size`,
+    /// `parent_coord_base`), periodic, the nearest texel along no field.
+    fn torus_output_params(&self, analysis: &Analysis, t: &Torus) -> PassParams {
+        let last = self.levels.len() - 1;
+        let fin = &self.levels[last];
+        PassParams {
+            origin: [0, 0],
+            size: [t.output[0] as i32, t.output[1] as i32],
+            parent_origin: [0, 0],
+            parent_size: [fin.size[0] as i32, fin.size[1] as i32],
+            parent_coord_base: fin.coord_base,
+            coord_base: t.base,
+            window_offset: [0, 0],
+            nearest: t.isometric as u32,
+            ..self.pass_params(analysis, last)
+        }
     }
 }
 
@@ -650,6 +783,9 @@ pub enum PassKind {
     /// Advection: add the frame's centre velocity, in whole finest pixels, to the drift
     /// (one invocation, first in a frame).
     Drift,
+    /// A tileable output made on a torus ([`Torus`]): the finest level's coordinates
+    /// resampled onto the output's grid.
+    Resample,
 }
 
 /// One dispatch of the schedule: the GPU and the CPU mirror run the same list.
@@ -682,7 +818,9 @@ impl Dispatch {
                 [p.window_size[0] as u32, p.window_size[1] as u32]
             }
             PassKind::Fill => [p.fill_count.min(FILL_ROW), p.fill_count.div_ceil(FILL_ROW)],
-            PassKind::Advect | PassKind::Distortion => [p.size[0] as u32, p.size[1] as u32],
+            PassKind::Advect | PassKind::Distortion | PassKind::Resample => {
+                [p.size[0] as u32, p.size[1] as u32]
+            }
             PassKind::Drift => [1, 1],
         }
     }
@@ -1216,6 +1354,20 @@ impl SynthPlan {
             }
         }
         let last = self.levels.len() - 1;
+        if let Some(t) = &self.torus {
+            let params = self.torus_output_params(analysis, t);
+            out.push(Dispatch {
+                kind: PassKind::Resample,
+                level: last,
+                params,
+            });
+            out.push(Dispatch {
+                kind: gather,
+                level: last,
+                params,
+            });
+            return out;
+        }
         out.push(Dispatch {
             kind: gather,
             level: last,
