@@ -1449,3 +1449,75 @@ fn resynthesized_levels_keep_the_texture_energy_under_a_vortex() {
     }
     assert!(kept.1 < 1.4 * kept.0, "{figures:?}");
 }
+
+/// The issue's "synthesis parameters (randomness, field, feature weight) may change
+/// between frames": the feature weight lives in the analysis, so a host swaps in the
+/// exemplar analysed with another weight (`Advection::set_synthesizer`). The coordinates
+/// carry over, the next frame corrects them against the new analysis (GPU = CPU), and it
+/// changes the result; an analysis of another exemplar size is refused.
+#[test]
+fn frames_continue_with_another_feature_weight() {
+    let ex = common::gravel_crop(32);
+    // The darkest quarter of the exemplar as its features.
+    let mut grey: Vec<f32> = ex
+        .colors
+        .iter()
+        .map(|c| c[0] as f32 + c[1] as f32 + c[2] as f32)
+        .collect();
+    let mut sorted = grey.clone();
+    sorted.sort_by(f32::total_cmp);
+    let t = sorted[sorted.len() / 4];
+    let inside: Vec<bool> = grey.drain(..).map(|g| g <= t).collect();
+    let mask = texsyn::analysis::feature::FeatureMask::new(ex.width, ex.height, inside).unwrap();
+    let analysed = |w: f32| {
+        let opts = AnalysisOptions {
+            feature_mask: Some(mask.clone()),
+            feature_weight: w,
+            ..AnalysisOptions::default()
+        };
+        let a = Arc::new(analyze(&ex, &opts, |_| {}).unwrap());
+        (a.clone(), Arc::new(GpuSynthesizer::new(ctx(), a).unwrap()))
+    };
+    let ((_, strong), (light_a, light)) = (analysed(1.0), analysed(0.25));
+    let params = SynthParams {
+        width: 40,
+        height: 36,
+        ..SynthParams::default()
+    };
+    let opts = AdvectOptions::default();
+    let mut swapped = Advection::new(ctx(), strong.clone(), &params, opts).unwrap();
+    let mut kept = Advection::new(ctx(), strong.clone(), &params, opts).unwrap();
+    let v = Flow::Vortex {
+        cx: 0.5,
+        cy: 0.5,
+        omega: 0.05,
+    }
+    .sample(40, 36, 0.0)
+    .unwrap();
+    for adv in [&mut swapped, &mut kept] {
+        for _ in 0..2 {
+            adv.step(ctx(), &v, 1.0).unwrap();
+        }
+    }
+    swapped.set_synthesizer(ctx(), light.clone()).unwrap();
+    assert!(Arc::ptr_eq(swapped.synthesizer(), &light));
+    let mut cpu = swapped.read_coords(ctx()).unwrap();
+    assert!(
+        step_matches_cpu(&mut swapped, &light_a, 2, &mut cpu, &v, 1.0),
+        "the frame after the swap differs from the CPU mirror"
+    );
+    kept.step(ctx(), &v, 1.0).unwrap();
+    assert_ne!(
+        swapped.read_coords(ctx()).unwrap(),
+        kept.read_coords(ctx()).unwrap(),
+        "the new feature weight changed nothing"
+    );
+    // Coordinates are positions in a 32x32 exemplar: a 40x40 one is refused.
+    let (_, other, _) = setup(40);
+    let e = swapped
+        .set_synthesizer(ctx(), other)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("same size"), "{e}");
+    swapped.step(ctx(), &v, 1.0).unwrap();
+}

@@ -297,6 +297,82 @@ impl Advection {
         Ok(())
     }
 
+    /// Continues the advection with another analysis of an exemplar of the same size,
+    /// pyramid and wrapping, on the same context: e.g. the same exemplar analysed with
+    /// another feature weight or mask (`AnalysisOptions::feature_weight`), another
+    /// appearance space, or another exemplar altogether. The coordinates carry over (they
+    /// are exemplar positions), and the next frames correct them against the new
+    /// appearance; the size, window or atlas and the levels' regions stay (refused
+    /// otherwise, as in [`Self::set_params`]). The analysis is the slow part (build it
+    /// ahead, e.g. one per weight a host wants to blend through); the swap itself only
+    /// checks and, where the frames read them, builds the new analysis's quarter-pixel
+    /// tables.
+    pub fn set_synthesizer(
+        &mut self,
+        ctx: &GpuContext,
+        synthesizer: Arc<GpuSynthesizer>,
+    ) -> Result<()> {
+        synthesizer.check_context(ctx)?;
+        let (old, new) = (self.synthesizer.analysis(), synthesizer.analysis());
+        if (new.width, new.height, new.levels.len(), new.tileable)
+            != (old.width, old.height, old.levels.len(), old.tileable)
+        {
+            return Err(Error::InvalidParameter(format!(
+                "the advection's coordinates are positions in a {}x{} exemplar of {} levels \
+                 ({}); the new analysis is of a {}x{} exemplar of {} levels ({}): swap in an \
+                 analysis of an exemplar of the same size and wrapping, or start a new \
+                 advection",
+                old.width,
+                old.height,
+                old.levels.len(),
+                if old.tileable {
+                    "tileable"
+                } else {
+                    "not tileable"
+                },
+                new.width,
+                new.height,
+                new.levels.len(),
+                if new.tileable {
+                    "tileable"
+                } else {
+                    "not tileable"
+                },
+            )));
+        }
+        let plan = SynthPlan::with_torus(new, &self.params, false)?;
+        let same_regions = plan.levels.len() == self.plan.levels.len()
+            && plan
+                .levels
+                .iter()
+                .zip(&self.plan.levels)
+                .all(|(a, b)| a.origin == b.origin && a.size == b.size);
+        if !same_regions {
+            return Err(Error::InvalidParameter(
+                "the new analysis changes the levels' margins (its correction passes per \
+                 level differ, e.g. a feature channel against none): start a new advection \
+                 for it"
+                    .into(),
+            ));
+        }
+        self.options.check_for_pyramid(plan.levels.len())?;
+        synthesizer.check_output(ctx, &plan)?;
+        ctx.scoped(|| {
+            let frame = plan.advect_schedule(new, &self.options, self.frame + 1);
+            if let Some(level) = crate::passes::plan::quarter_tables_level(&frame, new) {
+                synthesizer.fine_tables(ctx, level);
+            }
+        })?;
+        self.synthesizer = synthesizer;
+        self.plan = plan;
+        Ok(())
+    }
+
+    /// The synthesizer (exemplar analysis) the frames correct against.
+    pub fn synthesizer(&self) -> &Arc<GpuSynthesizer> {
+        &self.synthesizer
+    }
+
     pub fn set_options(&mut self, options: AdvectOptions) -> Result<()> {
         options.check_for_pyramid(self.plan.levels.len())?;
         self.options = options;
