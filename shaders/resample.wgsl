@@ -2,7 +2,8 @@
 // takes the coordinate of the torus pixel nearest to u = (x + 0.5) m / n - 0.5 (m the
 // torus period) plus J'(q) (u - q), so the texture advances across the output as the field
 // asks and repeats with the output's period. Reads the finest level (parent_size,
-// parent_coord_base), writes the output's region (size, coord_base).
+// parent_coord_base), writes the output's region (size, coord_base); rounded to whole
+// texels along no field (NEAREST).
 #include "shared/common.wgsl"
 
 // Torus pixel and u - q in 1/256 pixel, per axis (non-negative integer division only).
@@ -28,5 +29,11 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let src = params.parent_coord_base + u32(q.y * params.parent_size.x + q.x);
     let j = jac_at(src);
     let o = (vec2<i32>(j.x * f.x + j.y * f.y, j.z * f.x + j.w * f.y) + vec2<i32>(512)) >> vec2<u32>(10u);
-    coords[params.coord_base + u32(p.y * params.size.x + p.x)] = fit_coord(coords[src] + o);
+    var c = coords[src] + o;
+    if (NEAREST) {
+        // Along no field: whole texels, as isometric synthesis has (the gather reads the
+        // nearest one anyway).
+        c = ((c + vec2<i32>(128)) >> vec2<u32>(8u)) << vec2<u32>(8u);
+    }
+    coords[params.coord_base + u32(p.y * params.size.x + p.x)] = fit_coord(c);
 }

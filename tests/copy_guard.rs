@@ -412,3 +412,39 @@ fn a_larger_output_is_its_own_probe() {
     );
     ctx.take_uncaptured_errors().expect("no wgpu errors");
 }
+
+/// A tileable output whose sides are not multiples of 4 is made on a torus and resampled
+/// (`passes::plan::Torus`; whole texels along no field) and guarded like any periodic
+/// output: its own probe, its copies measured on the resampled coordinates, the kept
+/// probe the result. (Unguarded, a 511x511 tileable output from a 512 px exemplar had
+/// twice the texture energy of a guarded 512x512.)
+#[test]
+fn a_tileable_output_made_on_a_torus_is_guarded() {
+    let ctx = GpuContext::headless().expect("a device");
+    let syn = GpuSynthesizer::new(&ctx, Arc::new(gravel_analysis(GUARD_MIN_SIDE))).unwrap();
+    let a = syn.analysis();
+    let params = SynthParams {
+        width: 66,
+        height: 50,
+        seed: 3,
+        tileable_output: true,
+        ..Default::default()
+    };
+    assert!(SynthPlan::new(a, &params).unwrap().torus.is_some());
+    let choice = syn.choose_schedule(&ctx, &params, 0.25).unwrap();
+    let kept = choice.probes.last().expect("probed");
+    assert_eq!(kept.spacing, 1, "measured on the output");
+    let result = choice.result.expect("a periodic output is its own probe");
+    assert_eq!((result.width, result.height), (66, 50));
+    assert!(
+        result.coords.iter().flatten().all(|v| v % 256 == 0),
+        "whole texels"
+    );
+    let texels: Vec<[i32; 2]> = result.coords.iter().map(|c| c.map(|v| v >> 8)).collect();
+    let copy = verbatim_stats(&texels, 66, 50, a.width, a.height, a.tileable)
+        .unwrap()
+        .largest_region_fraction;
+    assert_eq!(kept.copy, copy);
+    // Coherent patches are found in the resampled coordinates (whole exemplar copies).
+    assert!(copy > 0.01, "largest copy {copy}");
+}

@@ -615,15 +615,7 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
         standalone: args.standalone,
     };
     // Validate the parameters before uploading anything.
-    if let Some(t) = texsyn::passes::SynthPlan::new(&analysis, &params)?.torus {
-        // Each level's period is half the finer one's, rounded up: an odd period (or an
-        // odd half) cannot be upsampled coherently across the wrap (`Torus`).
-        ui.info(format!(
-            "tileable: synthesized on a {}x{} torus (sides that are multiples of 4 wrap \
-             cleanly) and resampled to {width}x{height}",
-            t.period[0], t.period[1]
-        ));
-    }
+    texsyn::passes::SynthPlan::new(&analysis, &params)?;
 
     // The pipelines are built on another thread while the analysis uploads (both take
     // tens of milliseconds on lavapipe; a large exemplar's upload is mostly page faults).
@@ -643,6 +635,29 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
         fail("building the GPU pipelines failed (their thread panicked)".to_string())
     })?;
     built?;
+    if args.tileable_output && (width % 4 != 0 || height % 4 != 0) {
+        // Each level's period is half the finer one's, rounded up: an odd period (or an
+        // odd half) cannot be upsampled coherently across the wrap (`Torus`).
+        ui.info(match synthesizer.plan_for(&ctx, &params)?.torus {
+            Some(t) => format!(
+                "tileable: synthesized on a {}x{} torus and resampled to {width}x{height} \
+                 (sides that are multiples of 4 wrap cleanly)",
+                t.period[0], t.period[1]
+            ),
+            None => format!(
+                "note: this tileable output keeps its own periods ({}), and a side that is \
+                 not a multiple of 4 shows a faint seam where the tiles meet (e.g. {}x{} \
+                 tiles cleanly)",
+                if width.min(height) < texsyn::passes::plan::TORUS_MIN_SIDE {
+                    "a side under 8 pixels"
+                } else {
+                    "its torus would not fit the device"
+                },
+                width.next_multiple_of(4),
+                height.next_multiple_of(4)
+            ),
+        });
+    }
     // The library's check covers the whole pyramid (the one above, the finest level).
     windowed |= !args.tileable_output && args.magnify.is_none() && !synthesizer.fits(&ctx, &params);
     // The rest of the preparation (the pipelines are built: a field's Jacobians), before

@@ -151,8 +151,7 @@ impl GpuSynthesizer {
     /// (the parameters come back as they are) when `budget` is 0, for exemplars under
     /// [`GUARD_MIN_SIDE`], when `params` gives its own `randomness` or
     /// `extra_still_levels`, for anisometric and atlas synthesis (whose patches the
-    /// field shapes; not measured) and tileable outputs made on a torus
-    /// ([`crate::passes::plan::Torus`], continuous coordinates too), for outputs over [`MAX_PROBE_SIZE`] a side
+    /// field shapes; not measured), for outputs over [`MAX_PROBE_SIZE`] a side
     /// ([`Self::probed_size`]), and where the probe does not fit the device in one
     /// piece ([`GpuSynthesizer::fits`]). Costs one synthesis of the probe window per tier
     /// tried (less for a probe given up early, see [`EARLY_CHECKS`]), plus the result's
@@ -169,7 +168,7 @@ impl GpuSynthesizer {
             )));
         }
         // Invalid parameters fail as they would without the guard.
-        let plan = crate::passes::SynthPlan::new(self.analysis(), params)?;
+        crate::passes::SynthPlan::new(self.analysis(), params)?;
         let mut choice = ScheduleChoice {
             params: params.clone(),
             probes: Vec::new(),
@@ -182,9 +181,6 @@ impl GpuSynthesizer {
             || !params.randomness.is_empty()
             || params.extra_still_levels != 0
             || params.anisometric()
-            // A tileable output made on a torus has continuous coordinates, as along a
-            // field, and its probe would be the torus.
-            || plan.torus.is_some()
         {
             return Ok(choice);
         }

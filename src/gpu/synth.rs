@@ -294,6 +294,7 @@ impl Variant {
     const CORRECTION_ONLY: u16 = 0b11_1100_0110_0110;
     /// The bits only the gathers read: NEAREST and SEAM_BLEND.
     const GATHER_ONLY: u16 = 0b11 << 8;
+    const SEAM_BLEND: u16 = 1 << 9;
     const FINE_TABLES: u16 = 1 << 6;
     const IDENTITY_J: u16 = 1 << 7;
     /// Above k's bits: `params.drift != 0`, which only the anisometric upsampling
@@ -360,6 +361,8 @@ impl Variant {
         match kind {
             PassKind::Correct | PassKind::CorrectAniso => Self(v & !Self::GATHER_ONLY),
             PassKind::Gather | PassKind::GatherAniso => Self(v & !Self::CORRECTION_ONLY),
+            // The resampling rounds to whole texels where the gather reads the nearest.
+            PassKind::Resample => Self(v & !(Self::CORRECTION_ONLY | Self::SEAM_BLEND)),
             _ => Self(v & !(Self::CORRECTION_ONLY | Self::GATHER_ONLY)),
         }
     }
@@ -885,6 +888,22 @@ impl GpuSynthesizer {
     /// validation error that spoils the device's cached pipelines, or a panic in wgpu
     /// across instances). Two contexts made with [`GpuContext::from_device`] from the
     /// same device count as different: clone the first instead.
+    /// The plan this synthesizer runs for `params` on `ctx`: [`SynthPlan::new`], except
+    /// that a tileable output made on a torus ([`crate::passes::plan::Torus`]) whose
+    /// pyramid and Jacobians do not fit the device keeps the output's own periods
+    /// (the plan [`SynthPlan::with_torus`] makes without the torus, whose sides that are
+    /// not multiples of 4 show a faint seam at the wrap) where that one fits.
+    pub fn plan_for(&self, ctx: &GpuContext, params: &SynthParams) -> Result<SynthPlan> {
+        let plan = SynthPlan::new(&self.analysis, params)?;
+        if plan.torus.is_some() && self.check_output(ctx, &plan).is_err() {
+            let exact = SynthPlan::with_torus(&self.analysis, params, false)?;
+            if self.check_output(ctx, &exact).is_ok() {
+                return Ok(exact);
+            }
+        }
+        Ok(plan)
+    }
+
     pub fn check_context(&self, ctx: &GpuContext) -> Result<()> {
         if !self.context.same_as(ctx) {
             return Err(Error::InvalidParameter(
@@ -1328,7 +1347,7 @@ impl GpuSynthesizer {
         params: &SynthParams,
         submitting: bool,
     ) -> Result<GpuSynthesis> {
-        let plan = SynthPlan::new(&self.analysis, params)?;
+        let plan = self.plan_for(ctx, params)?;
         self.check_output(ctx, &plan)?;
         let schedule = plan.schedule(&self.analysis);
         let texture = ctx.scoped(|| self.output_texture(ctx, params.width, params.height))?;
@@ -1405,7 +1424,7 @@ impl GpuSynthesizer {
     /// Whether `params` can be synthesized in one piece on this device (its coordinate
     /// pyramid, Jacobians and dispatches within the device's limits).
     pub fn fits(&self, ctx: &GpuContext, params: &SynthParams) -> bool {
-        SynthPlan::new(&self.analysis, params)
+        self.plan_for(ctx, params)
             .is_ok_and(|plan| self.check_output(ctx, &plan).is_ok())
     }
 
@@ -1625,7 +1644,7 @@ impl GpuSynthesizer {
                 )));
             }
         }
-        let plan = SynthPlan::new(&self.analysis, params)?;
+        let plan = self.plan_for(ctx, params)?;
         self.check_output(ctx, &plan)?;
         let schedule = plan.schedule(&self.analysis);
         let (w, h) = (params.width, params.height);
@@ -1844,7 +1863,7 @@ impl GpuSynthesizer {
     ) -> Result<GpuSynthesis> {
         let a = &self.analysis;
         self.check_magnify(ctx, params, (hi, hi_width, hi_height), factor)?;
-        let plan = SynthPlan::new(a, params)?;
+        let plan = self.plan_for(ctx, params)?;
         self.check_output(ctx, &plan)?;
         let (w, h) = (params.width * factor, params.height * factor);
         let schedule = plan.schedule(a);
@@ -1896,7 +1915,7 @@ impl GpuSynthesizer {
         ctx: &GpuContext,
         params: &SynthParams,
     ) -> Result<Vec<(PassKind, usize, std::time::Duration)>> {
-        let plan = SynthPlan::new(&self.analysis, params)?;
+        let plan = self.plan_for(ctx, params)?;
         self.check_output(ctx, &plan)?;
         let schedule = plan.schedule(&self.analysis);
         let texture = ctx.scoped(|| self.output_texture(ctx, params.width, params.height))?;
@@ -1940,7 +1959,7 @@ impl GpuSynthesizer {
         checkpoints: &[(u32, f64)],
     ) -> Result<ProbeRun> {
         let a = &*self.analysis;
-        let plan = SynthPlan::new(a, params)?;
+        let plan = self.plan_for(ctx, params)?;
         self.check_output(ctx, &plan)?;
         let schedule = plan.schedule(a);
         let last = plan.levels.len() - 1;
@@ -1952,7 +1971,9 @@ impl GpuSynthesizer {
         let view = texture.create_view(&Default::default());
         let mut start = 0;
         for &(up, limit) in checkpoints {
-            if up == 0 || up as usize > last {
+            // A tileable output made on a torus is measured on its resampled output only
+            // (its levels are the torus's, not the output's halved).
+            if up == 0 || up as usize > last || plan.torus.is_some() {
                 continue;
             }
             let l = last - up as usize;
@@ -2026,8 +2047,14 @@ impl GpuSynthesizer {
         }
         let (synthesis, _, _) =
             self.synthesize_maps_inner(ctx, params, &[], None, Some((&coords, start)))?;
+        // Whole texels (a torus's isometric output has them in fixed point).
+        let texels: Vec<[i32; 2]> = synthesis
+            .coords
+            .iter()
+            .map(|c| c.map(|v| v >> synthesis.coord_frac))
+            .collect();
         let copy = crate::quality::verbatim_stats(
-            &synthesis.coords,
+            &texels,
             synthesis.width,
             synthesis.height,
             a.width,
@@ -2046,7 +2073,7 @@ impl GpuSynthesizer {
         params: &SynthParams,
         count: usize,
     ) -> Result<Vec<[i32; 2]>> {
-        let plan = SynthPlan::new(&self.analysis, params)?;
+        let plan = self.plan_for(ctx, params)?;
         self.check_output(ctx, &plan)?;
         let schedule = plan.schedule(&self.analysis);
         let schedule = &schedule[..count.min(schedule.len())];

@@ -271,8 +271,11 @@ pub struct SynthPlan {
 /// `u = (x + 0.5) period / output - 0.5` plus `J' (u - q)`, so that the texture advances
 /// exactly as the field asks per output pixel and the period is the output's. The
 /// coordinates are continuous (an anisometric plan, the identity field where none is
-/// given); along no field the gather reads the nearest texel, so coherent patches are
-/// exact copies of the exemplar, as in isometric synthesis.
+/// given, with an isometric synthesis's passes); along no field the resampled ones are
+/// rounded to whole texels and the gather reads those, so coherent patches are exact
+/// copies of the exemplar, as in isometric synthesis (and the copy guard measures them).
+/// `GpuSynthesizer::plan_for` falls back to the output's own periods where the torus
+/// does not fit the device.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Torus {
     /// Sides of the synthesized torus (multiples of 4).
@@ -295,7 +298,7 @@ pub const TORUS_MIN_SIDE: u32 = 8;
 /// multiple of 4 (or under [`TORUS_MIN_SIDE`]), else the nearest multiple of 4 (the
 /// larger of two equally near ones).
 pub fn torus_period(n: u32) -> u32 {
-    if n % 4 == 0 || n < TORUS_MIN_SIDE {
+    if n.is_multiple_of(4) || n < TORUS_MIN_SIDE {
         n
     } else {
         (n + 2) / 4 * 4
@@ -434,6 +437,15 @@ impl SynthPlan {
                     scale: [1.0, 1.0],
                     shear: 0.0,
                 }),
+                // The passes of an isometric synthesis (`passes_at` reads the field).
+                second_finest_passes: Some(params.second_finest_passes.unwrap_or_else(|| {
+                    default_second_finest_passes(
+                        params.passes,
+                        false,
+                        false,
+                        ExemplarShape::of(analysis),
+                    )
+                })),
                 ..params.clone()
             }
         } else {

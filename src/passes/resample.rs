@@ -3,8 +3,9 @@
 //! axis, output pixel `x` of `n` stands for torus position `u = (x + 0.5) m / n - 0.5`
 //! (`m` the torus period), whose nearest torus pixel is `q = floor((2x + 1) m / 2n)`;
 //! the coordinate is `S[q] + J'(q) (u - q)`, with `u - q` rounded to 1/256 pixel, so the
-//! texture advances across the output as the field asks, with the output's period.
-//! Integer arithmetic only (the same bytes on every device).
+//! texture advances across the output as the field asks, with the output's period; along
+//! no field (`nearest`) rounded to whole texels. Integer arithmetic only (the same bytes
+//! on every device).
 
 use super::common::{fit_coord, PassParams};
 
@@ -34,8 +35,14 @@ pub fn run(p: &PassParams, coords: &mut [[i32; 2]], jac: &[[i32; 4]]) {
                 (j[0] * fx + j[1] * fy + 512) >> 10,
                 (j[2] * fx + j[3] * fy + 512) >> 10,
             ];
+            let mut c = [s[0] + o[0], s[1] + o[1]];
+            if p.nearest != 0 {
+                // Along no field: whole texels, as isometric synthesis has (the gather
+                // reads the nearest one anyway).
+                c = c.map(|v| ((v + 128) >> 8) << 8);
+            }
             let i = p.coord_base as usize + (y * p.size[0] + x) as usize;
-            coords[i] = fit_coord([s[0] + o[0], s[1] + o[1]], p);
+            coords[i] = fit_coord(c, p);
         }
     }
 }
