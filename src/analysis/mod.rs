@@ -256,7 +256,8 @@ pub struct AnalysisOptions {
     /// Weight `w` of the feature channel, in `[0, 100]`: at 1 (default) the channel has
     /// as much variance as all colour channels together. Ignored without a mask.
     pub feature_weight: f32,
-    /// Clamp `dmax` of the signed distance, in exemplar pixels (default 4).
+    /// Clamp `dmax` of the signed distance, in exemplar pixels
+    /// ([`feature::DEFAULT_FEATURE_CLAMP`], 1).
     pub feature_clamp: f32,
     /// Where the mask acts: in the appearance vectors (default, the paper) or in the
     /// similarity sets only. Ignored without a mask. With `Sets`, give a larger

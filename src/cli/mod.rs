@@ -98,6 +98,13 @@ pub struct AppearanceArgs {
           value_parser = parse_feature_weight)]
     pub feature_weight: Option<f32>,
 
+    /// Clamp of the feature mask's signed distance, in exemplar pixels (0.5 to 4096): 1
+    /// says inside, outside or on the boundary; larger values also say how deep inside a
+    /// region a pixel lies, which costs colour fidelity [default: 1]
+    #[arg(long, value_name = "PX", requires = "feature_mask", allow_hyphen_values = true,
+          value_parser = parse_feature_clamp)]
+    pub feature_clamp: Option<f32>,
+
     /// Where the feature mask acts: appearance (the paper: in the appearance vectors the
     /// synthesis matches; structures stay whole, colour energy rises) or sets (in the
     /// similarity sets only: the colours match as without a mask, a smaller structural
@@ -134,6 +141,9 @@ impl AppearanceArgs {
                 .map_err(|e| fail(format!("--feature-mask: {e}")))?;
             options.feature_mask = Some(mask);
         }
+        if let Some(c) = self.feature_clamp {
+            options.feature_clamp = c;
+        }
         Ok(())
     }
 }
@@ -159,6 +169,18 @@ pub fn parse_feature_weight(s: &str) -> Result<f32, String> {
         .parse()
         .map_err(|_| format!("\"{s}\" is not a number"))?;
     texsyn::analysis::feature::check_weight(v).map_err(|e| match e {
+        texsyn::Error::InvalidParameter(m) => m,
+        other => other.to_string(),
+    })?;
+    Ok(v)
+}
+
+pub fn parse_feature_clamp(s: &str) -> Result<f32, String> {
+    let v: f32 = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("\"{s}\" is not a number"))?;
+    texsyn::analysis::feature::check_clamp(v).map_err(|e| match e {
         texsyn::Error::InvalidParameter(m) => m,
         other => other.to_string(),
     })?;
