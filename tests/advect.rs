@@ -1512,12 +1512,31 @@ fn frames_continue_with_another_feature_weight() {
         kept.read_coords(ctx()).unwrap(),
         "the new feature weight changed nothing"
     );
-    // Coordinates are positions in a 32x32 exemplar: a 40x40 one is refused.
+    // Coordinates are positions in a 32x32 exemplar: a 40x40 one is refused, and so is
+    // a synthesizer on another context (the advection's buffers live on its own); a
+    // refused swap leaves the advection as it was.
+    let before = swapped.read_coords(ctx()).unwrap();
     let (_, other, _) = setup(40);
     let e = swapped
         .set_synthesizer(ctx(), other)
         .unwrap_err()
         .to_string();
     assert!(e.contains("same size"), "{e}");
-    swapped.step(ctx(), &v, 1.0).unwrap();
+    let elsewhere = GpuContext::headless().unwrap();
+    let foreign = Arc::new(GpuSynthesizer::new(&elsewhere, light_a.clone()).unwrap());
+    assert!(swapped
+        .set_synthesizer(&elsewhere, foreign.clone())
+        .is_err());
+    assert!(swapped.set_synthesizer(ctx(), foreign).is_err());
+    assert!(Arc::ptr_eq(swapped.synthesizer(), &light));
+    assert_eq!(swapped.read_coords(ctx()).unwrap(), before);
+    let mut cpu = before;
+    assert!(step_matches_cpu(
+        &mut swapped,
+        &light_a,
+        3,
+        &mut cpu,
+        &v,
+        1.0
+    ));
 }

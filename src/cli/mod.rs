@@ -98,9 +98,9 @@ pub struct AppearanceArgs {
           value_parser = parse_feature_weight)]
     pub feature_weight: Option<f32>,
 
-    /// Clamp of the feature mask's signed distance, in exemplar pixels (0.5 to 4096): 1
-    /// says inside, outside or on the boundary; larger values also say how deep inside a
-    /// region a pixel lies, which costs colour fidelity [default: 1]
+    /// Clamp of the feature mask's signed distance in [0.5, 4096] pixels of the analysed
+    /// exemplar: 1 says inside, outside or on the boundary; larger values also say how
+    /// deep inside a region a pixel lies, which costs colour fidelity [default: 1]
     #[arg(long, value_name = "PX", requires = "feature_mask", allow_hyphen_values = true,
           value_parser = parse_feature_clamp)]
     pub feature_clamp: Option<f32>,

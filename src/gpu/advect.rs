@@ -312,6 +312,8 @@ impl Advection {
         ctx: &GpuContext,
         synthesizer: Arc<GpuSynthesizer>,
     ) -> Result<()> {
+        // Both on this advection's context (its buffers live there).
+        self.synthesizer.check_context(ctx)?;
         synthesizer.check_context(ctx)?;
         let (old, new) = (self.synthesizer.analysis(), synthesizer.analysis());
         if (new.width, new.height, new.levels.len(), new.tileable)
@@ -350,15 +352,16 @@ impl Advection {
         if !same_regions {
             return Err(Error::InvalidParameter(
                 "the new analysis changes the levels' margins (its correction passes per \
-                 level differ, e.g. a feature channel against none): start a new advection \
-                 for it"
+                 level differ: a feature channel against none, with more than 2 passes): \
+                 analyse both with the mask (a feature weight of 0 stands for none), or \
+                 start a new advection"
                     .into(),
             ));
         }
         self.options.check_for_pyramid(plan.levels.len())?;
         synthesizer.check_output(ctx, &plan)?;
         ctx.scoped(|| {
-            let frame = plan.advect_schedule(new, &self.options, self.frame + 1);
+            let frame = plan.advect_schedule(new, &self.options, self.frame);
             if let Some(level) = crate::passes::plan::quarter_tables_level(&frame, new) {
                 synthesizer.fine_tables(ctx, level);
             }
