@@ -286,3 +286,47 @@ fn an_analysis_larger_than_memory_is_refused_before_any_work() {
     // The 128 px exemplars need about 10 MiB.
     assert!(analysis_memory_estimate(128, 128) < 16 << 20);
 }
+
+/// A tileable output whose sides are not multiples of 4 is made on a torus
+/// (`passes::plan::Torus`), which needs a Jacobian per coordinate; where that does not
+/// fit the device but the output's own periods do, `GpuSynthesizer::plan_for` keeps
+/// those (and their faint seam) instead of failing.
+#[test]
+fn a_torus_that_does_not_fit_keeps_the_outputs_own_periods() {
+    let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
+        backends: wgpu::Backends::PRIMARY,
+        ..wgpu::InstanceDescriptor::new_without_display_handle()
+    });
+    let Ok(adapter) = pollster::block_on(instance.request_adapter(&Default::default())) else {
+        return; // The headless tests above need the adapter anyway.
+    };
+    // 2 MiB per binding: a 250x250 torus (252x252 and the output, 147k coordinates) needs
+    // 2.4 MB of Jacobians; the output's own pyramid and flags 1.2 MB of coordinates.
+    let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+        required_limits: wgpu::Limits {
+            max_storage_buffer_binding_size: 2 << 20,
+            ..wgpu::Limits::default()
+        },
+        ..Default::default()
+    }))
+    .unwrap();
+    let small = GpuContext::from_device(device, queue);
+    let a = analysis();
+    let params = SynthParams {
+        width: 250,
+        height: 250,
+        tileable_output: true,
+        ..SynthParams::default()
+    };
+    let torus = texsyn::passes::SynthPlan::new(&a, &params).unwrap();
+    assert_eq!(torus.torus.map(|t| t.period), Some([252, 252]));
+    let gpu = GpuSynthesizer::new(&small, a.clone()).unwrap();
+    let plan = gpu.plan_for(&small, &params).unwrap();
+    assert!(plan.torus.is_none(), "the torus does not fit 2 MiB");
+    let out = gpu.synthesize_to_host(&small, &params).unwrap();
+    assert_eq!((out.width, out.height, out.coord_frac), (250, 250, 0));
+    small.take_uncaptured_errors().unwrap();
+    // With the default limits the torus is used.
+    let gpu = GpuSynthesizer::new(ctx(), a).unwrap();
+    assert_eq!(gpu.plan_for(ctx(), &params).unwrap(), torus);
+}
