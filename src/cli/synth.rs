@@ -641,8 +641,14 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
         ui.info(match synthesizer.plan_for(&ctx, &params)?.torus {
             Some(t) => format!(
                 "tileable: synthesized on a {}x{} torus and resampled to {width}x{height} \
-                 (sides that are multiples of 4 wrap cleanly)",
-                t.period[0], t.period[1]
+                 (sides that are multiples of 4 wrap cleanly{})",
+                t.period[0],
+                t.period[1],
+                if t.period[0] % 4 != 0 || t.period[1] % 4 != 0 {
+                    "; a side under 8 pixels keeps its period and may show a faint seam"
+                } else {
+                    ""
+                }
             ),
             None => format!(
                 "note: this tileable output keeps its own periods ({}), and a side that is \
