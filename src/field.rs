@@ -363,6 +363,16 @@ impl Field {
         Ok(())
     }
 
+    /// The identity everywhere: isometric synthesis run through the anisometric passes
+    /// (advection, a tileable output made on a torus).
+    pub fn identity() -> Self {
+        Field::Constant {
+            angle: 0.0,
+            scale: [1.0, 1.0],
+            shear: 0.0,
+        }
+    }
+
     /// Whether this is the identity everywhere (isometric synthesis).
     pub fn is_identity(&self) -> bool {
         matches!(self, Field::Constant { angle, scale, shear }
@@ -391,24 +401,7 @@ pub fn rasterize_region(
     size: [u32; 2],
     steps: u32,
 ) -> Vec<[i32; 4]> {
-    let f = (1u64 << steps.min(62)) as f64;
-    let w = size[0] as usize;
-    if let Field::Constant { .. } = field {
-        return vec![quantize(&field.at(0.0, 0.0)); w * size[1] as usize];
-    }
-    // Rows in parallel (trigonometry and a 2x2 SVD per pixel: about 40 ns each).
-    crate::analysis::par_ranges(size[1] as usize, 0, |rows| {
-        let mut out = Vec::with_capacity(rows.len() * w);
-        for y in rows {
-            let fy = (origin[1] as i64 + y as i64) as f64 * f + 0.5 * f - 0.5;
-            for x in 0..w as i64 {
-                let fx = (origin[0] as i64 + x) as f64 * f + 0.5 * f - 0.5;
-                out.push(quantize(&field.at(fx, fy)));
-            }
-        }
-        out
-    })
-    .concat()
+    rasterize_with(field, origin, size, steps, |x, y| quantize(&field.at(x, y)))
 }
 
 /// [`rasterize_region`] for a torus standing for an output `scale` times its size on
@@ -423,13 +416,25 @@ pub fn rasterize_region_scaled(
     steps: u32,
     scale: [f64; 2],
 ) -> Vec<[i32; 4]> {
+    let d = [[scale[0], 0.0], [0.0, scale[1]]];
+    rasterize_with(field, origin, size, steps, |x, y| {
+        let m = field.at((x + 0.5) * scale[0] - 0.5, (y + 0.5) * scale[1] - 0.5);
+        quantize(&clamp_singular(&mul(&m, &d)))
+    })
+}
+
+/// `at(x, y)` at every pixel centre of a level's region (output coordinates): once for a
+/// constant field, else rows in parallel (trigonometry and a 2x2 SVD per pixel: about
+/// 40 ns each).
+fn rasterize_with(
+    field: &Field,
+    origin: [i32; 2],
+    size: [u32; 2],
+    steps: u32,
+    at: impl Fn(f64, f64) -> [i32; 4] + Sync,
+) -> Vec<[i32; 4]> {
     let f = (1u64 << steps.min(62)) as f64;
     let w = size[0] as usize;
-    let at = |x: f64, y: f64| {
-        let m = field.at((x + 0.5) * scale[0] - 0.5, (y + 0.5) * scale[1] - 0.5);
-        let d = [[scale[0], 0.0], [0.0, scale[1]]];
-        quantize(&clamp_singular(&mul(&m, &d)))
-    };
     if let Field::Constant { .. } = field {
         return vec![at(0.0, 0.0); w * size[1] as usize];
     }

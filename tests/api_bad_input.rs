@@ -203,15 +203,20 @@ fn a_larger_velocity_buffer_is_read_in_part() {
     ctx().take_uncaptured_errors().unwrap();
 }
 
-/// A caller's device with downlevel limits gets a clear error, and the context stays
-/// usable for nothing else going wrong.
-#[test]
-fn a_downlevel_device_is_refused_clearly() {
+/// The adapter a caller would make its own device from (with the limits it chooses).
+fn adapter() -> Option<wgpu::Adapter> {
     let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
         backends: wgpu::Backends::PRIMARY,
         ..wgpu::InstanceDescriptor::new_without_display_handle()
     });
-    let Ok(adapter) = pollster::block_on(instance.request_adapter(&Default::default())) else {
+    pollster::block_on(instance.request_adapter(&Default::default())).ok()
+}
+
+/// A caller's device with downlevel limits gets a clear error, and the context stays
+/// usable for nothing else going wrong.
+#[test]
+fn a_downlevel_device_is_refused_clearly() {
+    let Some(adapter) = adapter() else {
         return; // The headless tests above need the adapter anyway.
     };
     let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
@@ -293,11 +298,7 @@ fn an_analysis_larger_than_memory_is_refused_before_any_work() {
 /// those (and their faint seam) instead of failing.
 #[test]
 fn a_torus_that_does_not_fit_keeps_the_outputs_own_periods() {
-    let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
-        backends: wgpu::Backends::PRIMARY,
-        ..wgpu::InstanceDescriptor::new_without_display_handle()
-    });
-    let Ok(adapter) = pollster::block_on(instance.request_adapter(&Default::default())) else {
+    let Some(adapter) = adapter() else {
         return; // The headless tests above need the adapter anyway.
     };
     // 2 MiB per binding: a 250x250 torus (252x252 and the output, 147k coordinates) needs

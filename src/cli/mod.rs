@@ -164,23 +164,20 @@ pub fn check_feature_mask(
 }
 
 pub fn parse_feature_weight(s: &str) -> Result<f32, String> {
-    let v: f32 = s
-        .trim()
-        .parse()
-        .map_err(|_| format!("\"{s}\" is not a number"))?;
-    texsyn::analysis::feature::check_weight(v).map_err(|e| match e {
-        texsyn::Error::InvalidParameter(m) => m,
-        other => other.to_string(),
-    })?;
-    Ok(v)
+    parse_checked(s, texsyn::analysis::feature::check_weight)
 }
 
 pub fn parse_feature_clamp(s: &str) -> Result<f32, String> {
+    parse_checked(s, texsyn::analysis::feature::check_clamp)
+}
+
+/// A number that `check` accepts, or its message.
+fn parse_checked(s: &str, check: fn(f32) -> texsyn::Result<()>) -> Result<f32, String> {
     let v: f32 = s
         .trim()
         .parse()
         .map_err(|_| format!("\"{s}\" is not a number"))?;
-    texsyn::analysis::feature::check_clamp(v).map_err(|e| match e {
+    check(v).map_err(|e| match e {
         texsyn::Error::InvalidParameter(m) => m,
         other => other.to_string(),
     })?;

@@ -211,11 +211,7 @@ impl Advection {
         p.second_finest_passes.get_or_insert(p.passes);
         p.standalone = false;
         if !p.anisometric() {
-            p.field = Some(Field::Constant {
-                angle: 0.0,
-                scale: [1.0, 1.0],
-                shear: 0.0,
-            });
+            p.field = Some(Field::identity());
         }
         p
     }
@@ -278,13 +274,7 @@ impl Advection {
     pub fn set_params(&mut self, params: &SynthParams) -> Result<()> {
         let params = Self::synthesis_params(params);
         let plan = SynthPlan::with_torus(self.synthesizer.analysis(), &params, false)?;
-        let same_regions = plan.levels.len() == self.plan.levels.len()
-            && plan
-                .levels
-                .iter()
-                .zip(&self.plan.levels)
-                .all(|(a, b)| a.origin == b.origin && a.size == b.size);
-        if !same_regions || params.surface.is_some() != self.params.surface.is_some() {
+        if !self.same_regions(&plan) || params.surface.is_some() != self.params.surface.is_some() {
             return Err(Error::InvalidParameter(
                 "advection parameters may change between frames, but not the output size, \
                  window or atlas, nor the number of correction passes where it changes the \
@@ -316,6 +306,7 @@ impl Advection {
         self.synthesizer.check_context(ctx)?;
         synthesizer.check_context(ctx)?;
         let (old, new) = (self.synthesizer.analysis(), synthesizer.analysis());
+        let wrapping = |t: bool| if t { "tileable" } else { "not tileable" };
         if (new.width, new.height, new.levels.len(), new.tileable)
             != (old.width, old.height, old.levels.len(), old.tileable)
         {
@@ -327,29 +318,15 @@ impl Advection {
                 old.width,
                 old.height,
                 old.levels.len(),
-                if old.tileable {
-                    "tileable"
-                } else {
-                    "not tileable"
-                },
+                wrapping(old.tileable),
                 new.width,
                 new.height,
                 new.levels.len(),
-                if new.tileable {
-                    "tileable"
-                } else {
-                    "not tileable"
-                },
+                wrapping(new.tileable),
             )));
         }
         let plan = SynthPlan::with_torus(new, &self.params, false)?;
-        let same_regions = plan.levels.len() == self.plan.levels.len()
-            && plan
-                .levels
-                .iter()
-                .zip(&self.plan.levels)
-                .all(|(a, b)| a.origin == b.origin && a.size == b.size);
-        if !same_regions {
+        if !self.same_regions(&plan) {
             return Err(Error::InvalidParameter(
                 "the new analysis changes the levels' margins (its correction passes per \
                  level differ: a feature channel against none, with more than 2 passes): \
@@ -380,6 +357,17 @@ impl Advection {
         options.check_for_pyramid(self.plan.levels.len())?;
         self.options = options;
         Ok(())
+    }
+
+    /// Whether `plan` computes the same regions at every level as the current one (the
+    /// coordinate buffer's layout, which frames carry over).
+    fn same_regions(&self, plan: &SynthPlan) -> bool {
+        plan.levels.len() == self.plan.levels.len()
+            && plan
+                .levels
+                .iter()
+                .zip(&self.plan.levels)
+                .all(|(a, b)| a.origin == b.origin && a.size == b.size)
     }
 
     fn check_dt(dt: f32) -> Result<()> {

@@ -432,11 +432,7 @@ impl SynthPlan {
         let isometric = params.field.is_none();
         let params = &if torus && isometric {
             SynthParams {
-                field: Some(Field::Constant {
-                    angle: 0.0,
-                    scale: [1.0, 1.0],
-                    shear: 0.0,
-                }),
+                field: Some(Field::identity()),
                 // The passes of an isometric synthesis (`passes_at` reads the field).
                 second_finest_passes: Some(params.second_finest_passes.unwrap_or_else(|| {
                     default_second_finest_passes(
