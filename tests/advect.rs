@@ -185,7 +185,7 @@ fn advection_frames_gpu_match_cpu() {
             },
             ..opts
         };
-        adv.set_options(o).unwrap();
+        adv.set_options(ctx(), o).unwrap();
         if f == 3 {
             adv.set_params(&SynthParams {
                 distance: texsyn::DistanceMode::Projected,
@@ -400,11 +400,12 @@ fn uniform_flow_of_whole_pixels_translates_exactly() {
     let v = Flow::Uniform { vx: 2.0, vy: -1.0 }
         .sample(w, h, 0.0)
         .unwrap();
-    for (upsample_finest, resynthesize, keep_look) in [
-        (true, 0, false),
-        (false, 0, false),
-        (true, 2, false),
-        (true, 0, true),
+    for (upsample_finest, resynthesize, keep_look, fade) in [
+        (true, 0, false, 0),
+        (false, 0, false, 0),
+        (true, 2, false, 0),
+        (true, 0, true, 0),
+        (true, 0, true, 8),
     ] {
         for passes in [0, 1] {
             let o = AdvectOptions {
@@ -412,6 +413,7 @@ fn uniform_flow_of_whole_pixels_translates_exactly() {
                 passes,
                 resynthesize,
                 keep_look,
+                fade,
                 levels: if keep_look {
                     4
                 } else {
@@ -438,8 +440,8 @@ fn uniform_flow_of_whole_pixels_translates_exactly() {
                 let same = same as f64 / total as f64;
                 eprintln!(
                     "upsampled finest {upsample_finest}, re-synthesized {resynthesize}, \
-                     keep_look {keep_look}, passes {passes}: warped {warped:.3}, unwarped \
-                     {still:.3}, identical {same:.3}"
+                     keep_look {keep_look}, fade {fade}, passes {passes}: warped \
+                     {warped:.3}, unwarped {still:.3}, identical {same:.3}"
                 );
                 // Measured over frames 1-5: 0.95-0.999 without corrections (the first
                 // frame re-upsamples a few pixels that continue no patch), 0.94-0.997
@@ -751,17 +753,23 @@ fn bad_velocities_and_time_steps() {
         })
         .is_err());
     assert!(adv
-        .set_options(AdvectOptions {
-            threshold: -1.0,
-            ..AdvectOptions::default()
-        })
+        .set_options(
+            ctx(),
+            AdvectOptions {
+                threshold: -1.0,
+                ..AdvectOptions::default()
+            }
+        )
         .is_err());
     for sets_every in [0, 17] {
         let e = adv
-            .set_options(AdvectOptions {
-                sets_every,
-                ..AdvectOptions::default()
-            })
+            .set_options(
+                ctx(),
+                AdvectOptions {
+                    sets_every,
+                    ..AdvectOptions::default()
+                },
+            )
             .unwrap_err()
             .to_string();
         assert!(e.contains("sets every"), "{e}");
@@ -837,15 +845,22 @@ fn bad_velocities_and_time_steps() {
             },
             "at most 14",
         ),
+        (
+            AdvectOptions { fade: 65, ..d },
+            "a fade of 65 frames: use 0 (off) to 64",
+        ),
     ] {
-        let e = adv.set_options(o).unwrap_err().to_string();
+        let e = adv.set_options(ctx(), o).unwrap_err().to_string();
         assert!(e.contains(needle), "{o:?}: {e}");
     }
-    adv.set_options(AdvectOptions {
-        levels: 1,
-        upsample_finest: false,
-        ..AdvectOptions::default()
-    })
+    adv.set_options(
+        ctx(),
+        AdvectOptions {
+            levels: 1,
+            upsample_finest: false,
+            ..AdvectOptions::default()
+        },
+    )
     .unwrap();
     adv.step(ctx(), &good, 1.0).unwrap();
     // Reading back through another context is an error, not a panic inside wgpu.
@@ -1204,7 +1219,7 @@ fn surface_advection_gpu_matches_cpu() {
             levels: if f >= 2 { 4 } else { o.levels },
             ..o
         };
-        adv.set_options(o).unwrap();
+        adv.set_options(ctx(), o).unwrap();
         adv.step(ctx(), &v, 1.0).unwrap();
         let s = plan.advect_schedule(&a, &o, f);
         run_cpu_frame(&a, &s, &mut cpu, &jac, &surface, &q);
@@ -1539,4 +1554,111 @@ fn frames_continue_with_another_feature_weight() {
         &v,
         1.0
     ));
+}
+
+/// Fading (`AdvectOptions::fade`): GPU = CPU (coordinates, fade state and colours) over
+/// frames of a fast vortex with `keep_look`, whose renewals pop; some pixels fade, none
+/// for more than N frames, and a pixel that does not fade shows exactly its
+/// coordinate's texel. Turning fading on between frames (the coordinate buffer grows)
+/// starts every pixel unfaded, and the frames after it read the state.
+#[test]
+fn fading_frames_match_cpu_and_fade_pops() {
+    let (a, synth, _) = setup(32);
+    let (w, h) = (48u32, 40u32);
+    let params = SynthParams {
+        width: w,
+        height: h,
+        origin: [5, -3],
+        ..SynthParams::default()
+    };
+    let n = 4u32;
+    let opts = AdvectOptions {
+        fade: n,
+        ..AdvectOptions::keep_look()
+    };
+    let flow = Flow::Vortex {
+        cx: 0.5,
+        cy: 0.5,
+        omega: 0.06,
+    };
+    let mut adv = Advection::new(ctx(), synth.clone(), &params, opts).unwrap();
+    let plan = adv.plan().clone();
+    let jac = plan.jacobians();
+    let mut cpu = vec![[0i32; 2]; plan.advect_buffer_len(true) as usize];
+    run_cpu_frame(
+        &a,
+        &plan.advect_first_schedule(&a, &opts),
+        &mut cpu,
+        &jac,
+        &[],
+        &[],
+    );
+    assert!(adv.read_coords(ctx()).unwrap() == cpu, "frame 0 differs");
+    let region = plan.fade_half_len() as usize / 3;
+    let (mut faded, mut shown) = (0usize, 0usize);
+    for f in 0..12u64 {
+        let v = flow.sample(w, h, f as f32).unwrap();
+        let q: Vec<[i32; 2]> = v.iter().map(|&v| quantize_velocity(v, 1.0)).collect();
+        let schedule = adv.frame_schedule();
+        let fade = schedule.last().unwrap();
+        assert_eq!(fade.kind, texsyn::passes::plan::PassKind::Fade);
+        adv.step(ctx(), &v, 1.0).unwrap();
+        let out = run_cpu_frame(&a, &schedule, &mut cpu, &jac, &[], &q).unwrap();
+        assert!(
+            adv.read_coords(ctx()).unwrap() == cpu,
+            "frame {} differs",
+            f + 1
+        );
+        let rgba: Vec<u8> = out.colors.iter().flatten().copied().collect();
+        assert_eq!(adv.read_rgba8(ctx()).unwrap(), rgba, "frame {}", f + 1);
+        let p = &fade.params;
+        let state = &cpu[p.fade_dst as usize..][..3 * region];
+        for t in 0..region {
+            let left = state[3 * t + 2][0];
+            assert!((0..=n as i32).contains(&left), "{left} frames left");
+            faded += (left > 0) as usize;
+            let (x, y) = (t as i32 % p.size[0], t as i32 / p.size[0]);
+            let (wx, wy) = (x - p.window_offset[0], y - p.window_offset[1]);
+            if left == 0 && wx >= 0 && wy >= 0 && wx < w as i32 && wy < h as i32 {
+                let o = (wy * w as i32 + wx) as usize;
+                let texel = texsyn::passes::gather_aniso::color_at(p, &a.colors, state[3 * t]);
+                assert_eq!(out.colors[o], texel);
+                shown += 1;
+            }
+        }
+    }
+    eprintln!("fading: {faded} pixel-frames of {}", 12 * region);
+    assert!(faded > 0 && shown > 0, "no pixel faded");
+    // Fading turned on between frames.
+    let mut adv = Advection::new(ctx(), synth, &params, AdvectOptions::keep_look()).unwrap();
+    let plain_len = plan.coord_buffer_len() as usize;
+    let mut cpu = vec![[0i32; 2]; plan.advect_buffer_len(true) as usize];
+    run_cpu_frame(
+        &a,
+        &plan.advect_first_schedule(&a, &AdvectOptions::keep_look()),
+        &mut cpu,
+        &jac,
+        &[],
+        &[],
+    );
+    assert_eq!(adv.read_coords(ctx()).unwrap().len(), plain_len);
+    for f in 0..4u64 {
+        if f == 2 {
+            adv.set_options(ctx(), opts).unwrap();
+        }
+        let v = flow.sample(w, h, f as f32).unwrap();
+        let q: Vec<[i32; 2]> = v.iter().map(|&v| quantize_velocity(v, 1.0)).collect();
+        let schedule = adv.frame_schedule();
+        if f >= 2 {
+            let src = schedule.last().unwrap().params.fade_src;
+            assert_eq!(src == 0, f == 2, "frame {}: fade_src {src}", f + 1);
+        }
+        adv.step(ctx(), &v, 1.0).unwrap();
+        let out = run_cpu_frame(&a, &schedule, &mut cpu, &jac, &[], &q).unwrap();
+        let gpu = adv.read_coords(ctx()).unwrap();
+        assert!(gpu[..] == cpu[..gpu.len()], "frame {} differs", f + 1);
+        let rgba: Vec<u8> = out.colors.iter().flatten().copied().collect();
+        assert_eq!(adv.read_rgba8(ctx()).unwrap(), rgba, "frame {}", f + 1);
+    }
+    ctx().take_uncaptured_errors().unwrap();
 }

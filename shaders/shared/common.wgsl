@@ -63,6 +63,11 @@ struct Params {
     // Anisometric correction (advection frames): leave pixels inside a coherent patch.
     coherent_skip: u32,
     drift: u32,
+    // Advection frames' fade pass (src/passes/fade.rs).
+    fade_src: u32,
+    fade_dst: u32,
+    fade_frames: u32,
+    fade_mean: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: Params;

@@ -71,6 +71,13 @@ pub struct AdvectArgs {
     #[arg(long, conflicts_with_all = ["advect_finest", "resynthesize"])]
     pub keep_look: bool,
 
+    /// Fade jumps in over N frames instead of popping (0: off): where a pixel's texture
+    /// changes other than by moving with the flow (a renewed patch, a moved seam), its old
+    /// content moves on with the flow and fades out while the new one fades in, with the
+    /// contrast kept. A uniform flow of whole pixels is unaffected
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    pub fade: u32,
+
     /// Levels each frame works on (the finest ones): the finest is upsampled from the
     /// others, which are advected (with --advect-finest, all are advected; with
     /// --resynthesize K, the K below the finest are re-synthesized) [default: 3, 4 with
@@ -377,6 +384,7 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
         upsample_finest: !args.advect_finest,
         resynthesize: args.resynthesize,
         keep_look: args.keep_look,
+        fade: args.fade,
     };
     options.check()?;
     // The temporal figures printed at the end use 5x5 windows: refuse what they cannot

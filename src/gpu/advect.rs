@@ -49,6 +49,9 @@ pub struct Advection {
     quantize: wgpu::ComputePipeline,
     quantize_layout: wgpu::BindGroupLayout,
     frame: u64,
+    /// Whether the coordinate buffer holds the fade state the next frame reads (the
+    /// previous frame faded).
+    fade_state: bool,
 }
 
 impl Advection {
@@ -67,7 +70,7 @@ impl Advection {
         options.check_for_pyramid(plan.levels.len())?;
         // The synthesis of frame 0 has the same limits (texture sides, buffers).
         synthesizer.check_output(ctx, &plan)?;
-        let n_coords = plan.coord_buffer_len();
+        let n_coords = plan.advect_buffer_len(options.fade > 0);
         let pixels = params.width as u64 * params.height as u64;
         let max = ctx.limits().max_storage_buffer_binding_size;
         if n_coords * 8 > max {
@@ -178,6 +181,7 @@ impl Advection {
             quantize,
             quantize_layout,
             frame: 0,
+            fade_state: options.fade > 0,
         };
         let schedule = this
             .plan
@@ -353,8 +357,39 @@ impl Advection {
         &self.synthesizer
     }
 
-    pub fn set_options(&mut self, options: AdvectOptions) -> Result<()> {
+    /// Changes the options between frames. Turning fading on ([`AdvectOptions::fade`])
+    /// on an advection made without it enlarges its coordinate buffer (refused where the
+    /// device cannot bind the larger one); the next frame then starts every pixel
+    /// unfaded.
+    pub fn set_options(&mut self, ctx: &GpuContext, options: AdvectOptions) -> Result<()> {
+        self.synthesizer.check_context(ctx)?;
         options.check_for_pyramid(self.plan.levels.len())?;
+        let need = self.plan.advect_buffer_len(options.fade > 0) * 8;
+        if need > self.coords.size() {
+            let max = ctx.limits().max_storage_buffer_binding_size;
+            if need > max {
+                return Err(Error::TooLarge {
+                    what: "advected output with fading",
+                    width: self.params.width,
+                    height: self.params.height,
+                    limit: format!("its coordinates and fade state need {} MiB", need >> 20),
+                    hint: "advect a smaller window, or without fading",
+                });
+            }
+            let grown = ctx.scoped(|| {
+                let grown = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("texsyn advected coords"),
+                    size: need,
+                    usage: self.coords.usage(),
+                    mapped_at_creation: false,
+                });
+                let mut encoder = ctx.device.create_command_encoder(&Default::default());
+                encoder.copy_buffer_to_buffer(&self.coords, 0, &grown, 0, self.coords.size());
+                ctx.queue.submit([encoder.finish()]);
+                grown
+            })?;
+            self.coords = grown;
+        }
         self.options = options;
         Ok(())
     }
@@ -422,10 +457,26 @@ impl Advection {
         })
     }
 
-    /// The dispatches of the next frame.
-    fn frame_schedule(&self) -> Vec<Dispatch> {
-        self.plan
-            .advect_schedule(self.synthesizer.analysis(), &self.options, self.frame)
+    /// The dispatches of the next frame ([`SynthPlan::advect_schedule`] for the current
+    /// frame and options; a fade that has no state yet starts every pixel unfaded), as
+    /// the CPU mirror ([`crate::passes::run_cpu_frame`]) runs them.
+    pub fn frame_schedule(&self) -> Vec<Dispatch> {
+        let mut schedule =
+            self.plan
+                .advect_schedule(self.synthesizer.analysis(), &self.options, self.frame);
+        if !self.fade_state {
+            // No fade state yet (fading just turned on): every pixel starts unfaded.
+            for d in schedule.iter_mut().filter(|d| d.kind == PassKind::Fade) {
+                d.params.fade_src = 0;
+            }
+        }
+        schedule
+    }
+
+    /// After a frame: whether the next one finds fade state.
+    fn frame_done(&mut self) {
+        self.frame += 1;
+        self.fade_state = self.options.fade > 0;
     }
 
     /// [`Self::step`] for profiling: each dispatch of the frame is submitted and waited
@@ -451,7 +502,7 @@ impl Advection {
             wait(ctx)?;
             out.push((d.kind, d.level, t.elapsed()));
         }
-        self.frame += 1;
+        self.frame_done();
         Ok(out)
     }
 
@@ -544,7 +595,7 @@ impl Advection {
     fn record_frame(&mut self, ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder) -> Result<()> {
         let schedule = self.frame_schedule();
         self.record(ctx, encoder, &schedule, false)?;
-        self.frame += 1;
+        self.frame_done();
         Ok(())
     }
 

@@ -362,7 +362,9 @@ impl Variant {
             PassKind::Correct | PassKind::CorrectAniso => Self(v & !Self::GATHER_ONLY),
             PassKind::Gather | PassKind::GatherAniso => Self(v & !Self::CORRECTION_ONLY),
             // The resampling rounds to whole texels where the gather reads the nearest.
-            PassKind::Resample => Self(v & !(Self::CORRECTION_ONLY | Self::SEAM_BLEND)),
+            PassKind::Resample | PassKind::Fade => {
+                Self(v & !(Self::CORRECTION_ONLY | Self::SEAM_BLEND))
+            }
             _ => Self(v & !(Self::CORRECTION_ONLY | Self::GATHER_ONLY)),
         }
     }
@@ -465,6 +467,7 @@ pub(crate) struct PassPipelines {
     drift: LazyPipeline,
     distortion: LazyPipeline,
     resample: LazyPipeline,
+    fade: LazyPipeline,
 }
 
 impl std::fmt::Debug for PassPipelines {
@@ -538,6 +541,7 @@ impl PassPipelines {
             drift: LazyPipeline::new(&shaders::DRIFT),
             distortion: LazyPipeline::new(&shaders::DISTORTION),
             resample: LazyPipeline::new(&shaders::RESAMPLE),
+            fade: LazyPipeline::new(&shaders::FADE),
         }
     }
 
@@ -556,6 +560,7 @@ impl PassPipelines {
             PassKind::Drift => &self.drift,
             PassKind::Distortion => &self.distortion,
             PassKind::Resample => &self.resample,
+            PassKind::Fade => &self.fade,
         };
         lazy.get(ctx, &self.pipeline_layout, variant.for_kind(kind))
     }

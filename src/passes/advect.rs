@@ -95,6 +95,27 @@ pub fn displacement(jv: i32, jk: i32, steps: u32, dither: i32) -> i32 {
     ((jv - lo + dither) >> JV_SHIFT) - hi
 }
 
+/// `J (V - k 2^steps)` in coordinate units, rounded with the frame's `dither`
+/// ([`displacement`] per component): what a frame subtracts from the coordinate it
+/// carries from `k` level pixels upstream (`shared/advect.wgsl`, `displacement`).
+pub fn offset(p: &PassParams, j: [i32; 4], vq: [i32; 2], k: [i32; 2]) -> [i32; 2] {
+    let d = p.dither as i32;
+    [
+        displacement(
+            j[0] * vq[0] + j[1] * vq[1],
+            j[0] * k[0] + j[1] * k[1],
+            p.steps,
+            d,
+        ),
+        displacement(
+            j[2] * vq[0] + j[3] * vq[1],
+            j[2] * k[0] + j[3] * k[1],
+            p.steps,
+            d,
+        ),
+    ]
+}
+
 /// Mirror of `advect.wgsl`: the level's advected coordinates, into the scratch region
 /// (`flag_base`), from which [`distortion`] copies them back.
 pub fn advect(p: &PassParams, coords: &mut [[i32; 2]], jac: &[[i32; 4]], velocity: &[[i32; 2]]) {
@@ -112,22 +133,7 @@ pub fn advect(p: &PassParams, coords: &mut [[i32; 2]], jac: &[[i32; 4]], velocit
                 )
             };
             let prev = coords[p.coord_base as usize + (sy * p.size[0] + sx) as usize];
-            let j = jac[i];
-            let d = p.dither as i32;
-            let o = [
-                displacement(
-                    j[0] * vq[0] + j[1] * vq[1],
-                    j[0] * k[0] + j[1] * k[1],
-                    p.steps,
-                    d,
-                ),
-                displacement(
-                    j[2] * vq[0] + j[3] * vq[1],
-                    j[2] * k[0] + j[3] * k[1],
-                    p.steps,
-                    d,
-                ),
-            ];
+            let o = offset(p, jac[i], vq, k);
             coords[p.flag_base as usize + (y * p.size[0] + x) as usize] =
                 fit_coord([prev[0] - o[0], prev[1] - o[1]], p);
         }
@@ -335,7 +341,19 @@ pub struct AdvectOptions {
     /// tens of frames most of it is new, and whole regions change at once where the
     /// coarse level is renewed), and a frame costs more. Off by default.
     pub keep_look: bool,
+    /// Fade jumps in over this many frames (0: off, at most [`MAX_FADE_FRAMES`]): a pixel
+    /// whose coordinate lands away from where the flow carried the previous frame's (a
+    /// renewed or remade patch, a moved seam) shows a blend of its old content, carried
+    /// on with the flow, and its new one, the old fading out over the frames, instead of
+    /// changing at once (`passes::fade`). The blend keeps the contrast
+    /// (variance-preserving). Coordinates (`read_coords`, the CPU mirror) are not
+    /// blended, only the colours; a uniform flow of whole pixels has no jumps and moves
+    /// the texture as exactly as without.
+    pub fade: u32,
 }
+
+/// Longest fade, frames.
+pub const MAX_FADE_FRAMES: u32 = 64;
 
 /// The distortion threshold (Jacobian units) beyond which [`AdvectOptions::keep_look`]
 /// remakes a pixel of the advected levels below the coarsest one: about 0.2 degrees of
@@ -414,6 +432,12 @@ impl AdvectOptions {
                 self.resynthesize
             )));
         }
+        if self.fade > MAX_FADE_FRAMES {
+            return Err(Error::InvalidParameter(format!(
+                "a fade of {} frames: use 0 (off) to {MAX_FADE_FRAMES} (--fade)",
+                self.fade
+            )));
+        }
         if self.keep_look && self.levels < 3 {
             return Err(Error::InvalidParameter(format!(
                 "keep_look on {} levels: it remakes the advected levels below the coarsest \
@@ -482,6 +506,7 @@ impl Default for AdvectOptions {
             upsample_finest: true,
             resynthesize: 0,
             keep_look: false,
+            fade: 0,
         }
     }
 }

@@ -123,6 +123,14 @@ pub struct PassParams {
     /// upsampling its phase (see `advect.rs`); 0: none (synthesis). Also keeps the size
     /// a multiple of 8 bytes, as WGSL rounds the uniform struct.
     pub drift: u32,
+    /// Advection frames' fade pass (see `fade.rs`): where the fade state this frame
+    /// reads starts in the coordinate buffer (0: none, every pixel starts unfaded) and
+    /// where it writes the new one, the frames a fade lasts, and the exemplar's mean
+    /// colour (RGBA8, packed) the blend keeps the contrast around.
+    pub fade_src: u32,
+    pub fade_dst: u32,
+    pub fade_frames: u32,
+    pub fade_mean: u32,
 }
 
 /// Dynamic uniform offsets must be multiples of this (the WebGPU default limit).

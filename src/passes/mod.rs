@@ -6,6 +6,7 @@ pub mod advect;
 pub mod common;
 pub mod correct;
 pub mod correct_aniso;
+pub mod fade;
 pub mod fill;
 pub mod gather;
 pub mod gather_aniso;
@@ -142,6 +143,13 @@ pub fn run_cpu_frame(
                 resample::run(&d.params, coords, jac);
                 None
             }
+            PassKind::Fade => Some(fade::run(
+                &d.params,
+                coords,
+                jac,
+                velocity,
+                &analysis.colors,
+            )),
             PassKind::Gather => Some(gather::run(&d.params, coords, &analysis.colors)),
             PassKind::GatherAniso => {
                 Some(gather_aniso::run(&d.params, coords, jac, &analysis.colors))

@@ -677,6 +677,10 @@ impl SynthPlan {
             clean_before: 0,
             coherent_skip: 0,
             drift: 0,
+            fade_src: 0,
+            fade_dst: 0,
+            fade_frames: 0,
+            fade_mean: 0,
         }
     }
 }
@@ -791,6 +795,9 @@ pub enum PassKind {
     /// Advection: add the frame's centre velocity, in whole finest pixels, to the drift
     /// (one invocation, first in a frame).
     Drift,
+    /// Advection frames with fading: the finest level's colours, pixels whose
+    /// coordinate jumped fading in over a few frames (`fade.rs`); in place of the gather.
+    Fade,
     /// A tileable output made on a torus ([`Torus`]): the finest level's coordinates
     /// resampled onto the output's grid.
     Resample,
@@ -826,7 +833,7 @@ impl Dispatch {
                 [p.window_size[0] as u32, p.window_size[1] as u32]
             }
             PassKind::Fill => [p.fill_count.min(FILL_ROW), p.fill_count.div_ceil(FILL_ROW)],
-            PassKind::Advect | PassKind::Distortion | PassKind::Resample => {
+            PassKind::Advect | PassKind::Distortion | PassKind::Resample | PassKind::Fade => {
                 [p.size[0] as u32, p.size[1] as u32]
             }
             PassKind::Drift => [1, 1],
@@ -942,6 +949,59 @@ impl SynthPlan {
     /// and after the current frame (`PassParams::drift`; zero at frame 0).
     pub fn drift_index(&self) -> u32 {
         (self.coord_count + self.flag_count()) as u32
+    }
+
+    /// Where an advection with fading keeps its two halves of fade state
+    /// (`passes::fade`): after the drift, each [`Self::fade_half_len`] entries.
+    pub fn fade_base(&self) -> u32 {
+        self.drift_index() + 2
+    }
+
+    /// Entries of one half of the fade state: [`super::fade::STATE_ENTRIES`] per pixel
+    /// of the finest level's region.
+    pub fn fade_half_len(&self) -> u64 {
+        let fin = self.levels.last().expect("a plan has levels");
+        super::fade::STATE_ENTRIES as u64 * fin.size[0] as u64 * fin.size[1] as u64
+    }
+
+    /// Entries of an advection's coordinate buffer: [`Self::coord_buffer_len`], plus
+    /// the two halves of fade state with `fade`.
+    pub fn advect_buffer_len(&self, fade: bool) -> u64 {
+        self.coord_buffer_len() + if fade { 2 * self.fade_half_len() } else { 0 }
+    }
+
+    /// An advection frame's fade dispatch in place of its gather `g` (`frames` > 0):
+    /// the finest level's region with the frame's drift and dither, reading the state
+    /// half `frame % 2` (written by the previous frame; frame 0's synthesis writes half
+    /// 0) unless `first`, writing the other.
+    fn fade_dispatch(
+        &self,
+        analysis: &Analysis,
+        g: &Dispatch,
+        frames: u32,
+        frame: u64,
+        first: bool,
+    ) -> Dispatch {
+        let n = self.levels.len() - 1;
+        let half = |h: u64| (self.fade_base() as u64 + h * self.fade_half_len()) as u32;
+        let (src, dst) = if first {
+            (0, half(0))
+        } else {
+            (half(frame % 2), half((frame + 1) % 2))
+        };
+        Dispatch {
+            kind: PassKind::Fade,
+            level: n,
+            params: PassParams {
+                drift: if first { 0 } else { self.drift_index() },
+                dither: super::advect::dither(frame),
+                fade_src: src,
+                fade_dst: dst,
+                fade_frames: frames,
+                fade_mean: super::fade::mean_color(&analysis.colors),
+                ..g.params
+            },
+        }
     }
 
     /// Entries of the flag region (the largest level).
@@ -1135,12 +1195,17 @@ impl SynthPlan {
             );
         }
         if let Some(g) = full.last() {
-            out.push(Dispatch {
+            let g = Dispatch {
                 params: PassParams {
                     nearest: nearest as u32,
                     ..g.params
                 },
                 ..*g
+            };
+            out.push(if options.fade > 0 {
+                self.fade_dispatch(analysis, &g, options.fade, frame, false)
+            } else {
+                g
             });
         }
         out
@@ -1193,6 +1258,9 @@ impl SynthPlan {
         }
         if let Some(g) = s.last_mut() {
             g.params.nearest = options.nearest as u32;
+            if options.fade > 0 {
+                *g = self.fade_dispatch(analysis, g, options.fade, 0, true);
+            }
         }
         s
     }

@@ -1,0 +1,143 @@
+// The last pass of an advection frame with fading (mirror: src/passes/fade.rs): the
+// finest level's colours, where a pixel whose coordinate jumped since the previous frame
+// (it landed more than FADE_JUMP from where the flow carried the previous frame's) in a
+// neighbourhood whose look the jumps changed (a renewed or remade patch: a pop) fades
+// from what it showed to its new content over params.fade_frames frames. Per pixel of the finest level's
+// region the fade state holds the coordinate (A), the ghost's coordinate (B) and the
+// frames the ghost has left (w); this frame reads the state at params.fade_src (none: 0)
+// k pixels upstream, moves A and B with the flow as advect.wgsl moves coordinates, and
+// writes the new state at params.fade_dst (two halves, swapped every frame, so no pixel
+// reads what another writes). Ghosts are coordinates, not colours: they move with the
+// texture without being resampled, so nothing blurs. The two colours are blended so that
+// the contrast stays (variance-preserving, around the exemplar's mean colour): a linear
+// blend of two unrelated patches is a flat, washed-out patch halfway through.
+#include "shared/common.wgsl"
+#include "shared/aniso.wgsl"
+#include "shared/advect.wgsl"
+#include "shared/exemplar_color.wgsl"
+
+// A jump: more than 1.5 exemplar pixels (1/256 units) per unit of the Jacobian's
+// largest column (at least 1), on either axis.
+const FADE_JUMP: i32 = 384;
+// A pop: the jumps of the pixel's 3x3 neighbourhood changed its grey level by more than
+// this on average (of 255).
+const FADE_CHANGE: i32 = 60;
+
+fn jumped(s: vec2<i32>, a: vec2<i32>, j: vec4<i32>) -> bool {
+    var d = s - a;
+    if (TILEABLE) {
+        let n = params.ex_size << vec2<u32>(params.coord_frac);
+        d -= select(vec2<i32>(0), n, d > n / 2);
+        d += select(vec2<i32>(0), n, d < -n / 2);
+    }
+    let col = max(abs(j.x) + abs(j.z), abs(j.y) + abs(j.w));
+    let limit = (FADE_JUMP * max(1024, col)) >> 10u;
+    return any(abs(d) > vec2<i32>(limit));
+}
+
+// The new colour c and the ghost's g, the ghost at w / (N + 1): mean + (a (c - mean) +
+// w (g - mean)) / sqrt(a^2 + w^2) with a = N + 1 - w, in fixed point, clamped to 0..255.
+fn fade_blend(c: vec4<i32>, g: vec4<i32>, w: i32) -> vec4<i32> {
+    let m = vec4<i32>(vec4<u32>(params.fade_mean, params.fade_mean >> 8u, params.fade_mean >> 16u,
+        params.fade_mean >> 24u) & vec4<u32>(255u));
+    let a = i32(params.fade_frames) + 1 - w;
+    // w > 0, so a^2 + w^2 >= 2 and isqrt's argument stays below 2^30.
+    let f = isqrt(i32((1u << 30u) / u32(a * a + w * w)));
+    let num = a * (c - m) + w * (g - m);
+    return clamp(m + ((num * f + vec4<i32>(1 << 14u)) >> vec4<u32>(15u)), vec4<i32>(0), vec4<i32>(255));
+}
+
+// The fade state at region pixel q's upstream pixel, k pixels up the flow, if it lies
+// in the region (a pixel whose upstream lies outside is new to the region: nothing to
+// fade): its index.
+fn upstream(q: vec2<i32>, k: vec2<i32>) -> i32 {
+    var src = q - k;
+    if (PERIODIC) {
+        src = vec2<i32>(wrap(src.x, params.size.x), wrap(src.y, params.size.y));
+    } else if (any(src < vec2<i32>(0)) || any(src >= params.size)) {
+        return -1;
+    }
+    return i32(params.fade_src + 3u * u32(src.y * params.size.x + src.x));
+}
+
+// How much region pixel q's colour changed by a jump of its coordinate (grey levels,
+// 0 where it did not jump, outside the region or without history).
+fn jump_change(q: vec2<i32>, k: vec2<i32>) -> i32 {
+    if (any(q < vec2<i32>(0)) || any(q >= params.size)) {
+        return 0;
+    }
+    let si = upstream(q, k);
+    if (si < 0) {
+        return 0;
+    }
+    let i = params.coord_base + u32(q.y * params.size.x + q.x);
+    let j = jac_at(i);
+    let o = displacement(j, velocity_at(params.origin + q), k);
+    let a = fit_coord(coords[u32(si)] - o);
+    let s = coords[i];
+    if (!jumped(s, a, j)) {
+        return 0;
+    }
+    let d = abs(color_at(s) - color_at(a));
+    return (d.x + 2 * d.y + d.z) >> 2u;
+}
+
+@compute @workgroup_size(8, 8, 1)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    opaque = i32(gid.z);
+    let q = vec2<i32>(gid.xy);
+    if (any(q >= (params.size | vec2<i32>(opaque)))) {
+        return;
+    }
+    let t = u32(q.y * params.size.x + q.x);
+    let i = params.coord_base + t;
+    let s = coords[i];
+    var ghost = s;
+    var w = 0;
+    if (params.fade_src != 0u) {
+        let k = whole_shift();
+        let si = upstream(q, k);
+        if (si >= 0) {
+            let j = jac_at(i);
+            let o = displacement(j, velocity_at(params.origin + q), k);
+            let a = fit_coord(coords[u32(si)] - o);
+            let b = fit_coord(coords[u32(si) + 1u] - o);
+            let left = max(coords[u32(si) + 2u].x - 1, 0);
+            // A pop: the pixel jumped, and the jumps around it changed the look (the
+            // mean change over its 3x3 neighbourhood). Most jumps are not: seams that
+            // moved, patches remade alike. Fading every jump kept two thirds of a
+            // vortex's texture blended and doubled its energy (fade.rs).
+            var change = 0;
+            for (var n = 0; n < 9; n++) {
+                change += jump_change(q + vec2<i32>(n % 3 - 1, n / 3 - 1), k);
+            }
+            let region = jumped(s, a, j) && change > 9 * FADE_CHANGE;
+            if (region) {
+                // A jump while a ghost shows: the one shown most stays the ghost.
+                if (2 * left > i32(params.fade_frames)) {
+                    ghost = b;
+                    w = left;
+                } else {
+                    ghost = a;
+                    w = i32(params.fade_frames);
+                }
+            } else if (left > 0) {
+                ghost = b;
+                w = left;
+            }
+        }
+    }
+    let d = params.fade_dst + 3u * t;
+    coords[d] = s;
+    coords[d + 1u] = ghost;
+    coords[d + 2u] = vec2<i32>(w, 0);
+    let p = q - params.window_offset;
+    if (any(p < vec2<i32>(0)) || any(p >= params.window_size)) {
+        return;
+    }
+    var v = color_at(s);
+    if (w > 0) {
+        v = fade_blend(v, color_at(ghost), w);
+    }
+    textureStore(out_color, p, vec4<f32>(v) / 255.0);
+}
