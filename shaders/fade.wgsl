@@ -15,25 +15,11 @@
 #include "shared/aniso.wgsl"
 #include "shared/advect.wgsl"
 #include "shared/exemplar_color.wgsl"
+#include "shared/fade.wgsl"
 
-// A jump: more than 1.5 exemplar pixels (1/256 units) per unit of the Jacobian's
-// largest column (at least 1), on either axis.
-const FADE_JUMP: i32 = 384;
 // A pop: the jumps of the pixel's 3x3 neighbourhood changed its grey level by more than
 // this on average (of 255).
 const FADE_CHANGE: i32 = 60;
-
-fn jumped(s: vec2<i32>, a: vec2<i32>, j: vec4<i32>) -> bool {
-    var d = s - a;
-    if (TILEABLE) {
-        let n = params.ex_size << vec2<u32>(params.coord_frac);
-        d -= select(vec2<i32>(0), n, d > n / 2);
-        d += select(vec2<i32>(0), n, d < -n / 2);
-    }
-    let col = max(abs(j.x) + abs(j.z), abs(j.y) + abs(j.w));
-    let limit = (FADE_JUMP * max(1024, col)) >> 10u;
-    return any(abs(d) > vec2<i32>(limit));
-}
 
 // The new colour c and the ghost's g, the ghost at w / (N + 1): mean + (a (c - mean) +
 // w (g - mean)) / sqrt(a^2 + w^2) with a = N + 1 - w, in fixed point, clamped to 0..255.
@@ -45,41 +31,6 @@ fn fade_blend(c: vec4<i32>, g: vec4<i32>, w: i32) -> vec4<i32> {
     let f = isqrt(i32((1u << 30u) / u32(a * a + w * w)));
     let num = a * (c - m) + w * (g - m);
     return clamp(m + ((num * f + vec4<i32>(1 << 14u)) >> vec4<u32>(15u)), vec4<i32>(0), vec4<i32>(255));
-}
-
-// The fade state at region pixel q's upstream pixel, k pixels up the flow, if it lies
-// in the region (a pixel whose upstream lies outside is new to the region: nothing to
-// fade): its index.
-fn upstream(q: vec2<i32>, k: vec2<i32>) -> i32 {
-    var src = q - k;
-    if (PERIODIC) {
-        src = vec2<i32>(wrap(src.x, params.size.x), wrap(src.y, params.size.y));
-    } else if (any(src < vec2<i32>(0)) || any(src >= params.size)) {
-        return -1;
-    }
-    return i32(params.fade_src + 3u * u32(src.y * params.size.x + src.x));
-}
-
-// How much region pixel q's colour changed by a jump of its coordinate (grey levels,
-// 0 where it did not jump, outside the region or without history).
-fn jump_change(q: vec2<i32>, k: vec2<i32>) -> i32 {
-    if (any(q < vec2<i32>(0)) || any(q >= params.size)) {
-        return 0;
-    }
-    let si = upstream(q, k);
-    if (si < 0) {
-        return 0;
-    }
-    let i = params.coord_base + u32(q.y * params.size.x + q.x);
-    let j = jac_at(i);
-    let o = displacement(j, velocity_at(params.origin + q), k);
-    let a = fit_coord(coords[u32(si)] - o);
-    let s = coords[i];
-    if (!jumped(s, a, j)) {
-        return 0;
-    }
-    let d = abs(color_at(s) - color_at(a));
-    return (d.x + 2 * d.y + d.z) >> 2u;
 }
 
 @compute @workgroup_size(8, 8, 1)
@@ -107,9 +58,13 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             // mean change over its 3x3 neighbourhood). Most jumps are not: seams that
             // moved, patches remade alike. Fading every jump kept two thirds of a
             // vortex's texture blended and doubled its energy (fade.rs).
+            // fade_jump.wgsl left each pixel's change in the flag region.
             var change = 0;
             for (var n = 0; n < 9; n++) {
-                change += jump_change(q + vec2<i32>(n % 3 - 1, n / 3 - 1), k);
+                let r = q + vec2<i32>(n % 3 - 1, n / 3 - 1);
+                if (all(r >= vec2<i32>(0)) && all(r < params.size)) {
+                    change += coords[params.flag_base + u32(r.y * params.size.x + r.x)].x;
+                }
             }
             let region = jumped(s, a, j) && change > 9 * FADE_CHANGE;
             if (region) {

@@ -466,6 +466,7 @@ impl Advection {
                 .advect_schedule(self.synthesizer.analysis(), &self.options, self.frame);
         if !self.fade_state {
             // No fade state yet (fading just turned on): every pixel starts unfaded.
+            schedule.retain(|d| d.kind != PassKind::FadeJump);
             for d in schedule.iter_mut().filter(|d| d.kind == PassKind::Fade) {
                 d.params.fade_src = 0;
             }

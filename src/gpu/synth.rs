@@ -362,7 +362,7 @@ impl Variant {
             PassKind::Correct | PassKind::CorrectAniso => Self(v & !Self::GATHER_ONLY),
             PassKind::Gather | PassKind::GatherAniso => Self(v & !Self::CORRECTION_ONLY),
             // The resampling rounds to whole texels where the gather reads the nearest.
-            PassKind::Resample | PassKind::Fade => {
+            PassKind::Resample | PassKind::Fade | PassKind::FadeJump => {
                 Self(v & !(Self::CORRECTION_ONLY | Self::SEAM_BLEND))
             }
             _ => Self(v & !(Self::CORRECTION_ONLY | Self::GATHER_ONLY)),
@@ -468,6 +468,7 @@ pub(crate) struct PassPipelines {
     distortion: LazyPipeline,
     resample: LazyPipeline,
     fade: LazyPipeline,
+    fade_jump: LazyPipeline,
 }
 
 impl std::fmt::Debug for PassPipelines {
@@ -542,6 +543,7 @@ impl PassPipelines {
             distortion: LazyPipeline::new(&shaders::DISTORTION),
             resample: LazyPipeline::new(&shaders::RESAMPLE),
             fade: LazyPipeline::new(&shaders::FADE),
+            fade_jump: LazyPipeline::new(&shaders::FADE_JUMP),
         }
     }
 
@@ -561,6 +563,7 @@ impl PassPipelines {
             PassKind::Distortion => &self.distortion,
             PassKind::Resample => &self.resample,
             PassKind::Fade => &self.fade,
+            PassKind::FadeJump => &self.fade_jump,
         };
         lazy.get(ctx, &self.pipeline_layout, variant.for_kind(kind))
     }

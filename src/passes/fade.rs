@@ -69,7 +69,7 @@ pub fn blend(p: &PassParams, c: [u8; 4], g: [u8; 4], w: i32) -> [u8; 4] {
 }
 
 /// What the pass reads.
-struct Frame<'a> {
+pub(super) struct Frame<'a> {
     p: &'a PassParams,
     coords: &'a [[i32; 2]],
     jac: &'a [[i32; 4]],
@@ -79,7 +79,28 @@ struct Frame<'a> {
     k: [i32; 2],
 }
 
-impl Frame<'_> {
+impl<'a> Frame<'a> {
+    pub(super) fn new(
+        p: &'a PassParams,
+        coords: &'a [[i32; 2]],
+        jac: &'a [[i32; 4]],
+        velocity: &'a [[i32; 2]],
+        colors: &'a [[u8; 4]],
+    ) -> Self {
+        Frame {
+            p,
+            coords,
+            jac,
+            velocity,
+            colors,
+            k: if p.fade_src != 0 {
+                whole_shift(p, coords, velocity)
+            } else {
+                [0, 0]
+            },
+        }
+    }
+
     /// The index of the fade state at region pixel `q`'s upstream pixel, `k` pixels up
     /// the flow, if it lies in the region (`upstream`).
     fn upstream(&self, q: [i32; 2]) -> Option<usize> {
@@ -110,7 +131,7 @@ impl Frame<'_> {
 
     /// How much region pixel `q`'s grey level changed by a jump of its coordinate (0
     /// where it did not jump, outside the region or without history; `jump_change`).
-    fn jump_change(&self, q: [i32; 2]) -> i32 {
+    pub(super) fn jump_change(&self, q: [i32; 2]) -> i32 {
         let p = self.p;
         if q[0] < 0 || q[1] < 0 || q[0] >= p.size[0] || q[1] >= p.size[1] {
             return 0;
@@ -141,8 +162,11 @@ impl Frame<'_> {
         };
         let (a, b) = (self.carried(q, si, 0), self.carried(q, si, 1));
         let left = (self.coords[si + 2][0] - 1).max(0);
+        // `fade_jump` left each pixel's change in the flag region.
         let change: i32 = (0..9)
-            .map(|n| self.jump_change([q[0] + n % 3 - 1, q[1] + n / 3 - 1]))
+            .map(|n| [q[0] + n % 3 - 1, q[1] + n / 3 - 1])
+            .filter(|r| r[0] >= 0 && r[1] >= 0 && r[0] < p.size[0] && r[1] < p.size[1])
+            .map(|r| self.coords[p.flag_base as usize + (r[1] * p.size[0] + r[0]) as usize][0])
             .sum();
         if jumped(p, s, a, self.jac[i]) && change > 9 * FADE_CHANGE {
             // A jump while a ghost shows: the one shown most stays the ghost.
@@ -170,18 +194,7 @@ pub fn run(
 ) -> (Vec<[i32; 2]>, Vec<[u8; 4]>) {
     let n = p.window_size[0] as usize * p.window_size[1] as usize;
     let (mut out_coords, mut out_colors) = (vec![[0; 2]; n], vec![[0; 4]; n]);
-    let frame = Frame {
-        p,
-        coords,
-        jac,
-        velocity,
-        colors,
-        k: if p.fade_src != 0 {
-            whole_shift(p, coords, velocity)
-        } else {
-            [0, 0]
-        },
-    };
+    let frame = Frame::new(p, coords, jac, velocity, colors);
     let mut state = Vec::with_capacity((p.size[0] * p.size[1]) as usize * 3);
     for y in 0..p.size[1] {
         for x in 0..p.size[0] {

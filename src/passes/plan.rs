@@ -798,6 +798,9 @@ pub enum PassKind {
     /// Advection frames with fading: the finest level's colours, pixels whose
     /// coordinate jumped fading in over a few frames (`fade.rs`); in place of the gather.
     Fade,
+    /// Advection frames with fading, before [`PassKind::Fade`]: how much each pixel's
+    /// look changed by a jump of its coordinate, into the flag region (`fade_jump.rs`).
+    FadeJump,
     /// A tileable output made on a torus ([`Torus`]): the finest level's coordinates
     /// resampled onto the output's grid.
     Resample,
@@ -833,9 +836,11 @@ impl Dispatch {
                 [p.window_size[0] as u32, p.window_size[1] as u32]
             }
             PassKind::Fill => [p.fill_count.min(FILL_ROW), p.fill_count.div_ceil(FILL_ROW)],
-            PassKind::Advect | PassKind::Distortion | PassKind::Resample | PassKind::Fade => {
-                [p.size[0] as u32, p.size[1] as u32]
-            }
+            PassKind::Advect
+            | PassKind::Distortion
+            | PassKind::Resample
+            | PassKind::Fade
+            | PassKind::FadeJump => [p.size[0] as u32, p.size[1] as u32],
             PassKind::Drift => [1, 1],
         }
     }
@@ -970,18 +975,19 @@ impl SynthPlan {
         self.coord_buffer_len() + if fade { 2 * self.fade_half_len() } else { 0 }
     }
 
-    /// An advection frame's fade dispatch in place of its gather `g` (`frames` > 0):
-    /// the finest level's region with the frame's drift and dither, reading the state
-    /// half `frame % 2` (written by the previous frame; frame 0's synthesis writes half
-    /// 0) unless `first`, writing the other.
-    fn fade_dispatch(
+    /// An advection frame's fade dispatches in place of its gather `g` (`frames` > 0):
+    /// over the finest level's region with the frame's drift and dither, the jumps'
+    /// changes into the flag region, then the fade, reading the state half `frame % 2`
+    /// (written by the previous frame; frame 0's synthesis writes half 0), writing the
+    /// other. `first` (frame 0): the fade alone, writing half 0 with every pixel unfaded.
+    fn fade_dispatches(
         &self,
         analysis: &Analysis,
         g: &Dispatch,
         frames: u32,
         frame: u64,
         first: bool,
-    ) -> Dispatch {
+    ) -> Vec<Dispatch> {
         let n = self.levels.len() - 1;
         let half = |h: u64| (self.fade_base() as u64 + h * self.fade_half_len()) as u32;
         let (src, dst) = if first {
@@ -989,19 +995,30 @@ impl SynthPlan {
         } else {
             (half(frame % 2), half((frame + 1) % 2))
         };
-        Dispatch {
+        let fade = Dispatch {
             kind: PassKind::Fade,
             level: n,
             params: PassParams {
                 drift: if first { 0 } else { self.drift_index() },
                 dither: super::advect::dither(frame),
+                flag_base: self.flag_base(),
                 fade_src: src,
                 fade_dst: dst,
                 fade_frames: frames,
                 fade_mean: super::fade::mean_color(&analysis.colors),
                 ..g.params
             },
+        };
+        if first {
+            return vec![fade];
         }
+        vec![
+            Dispatch {
+                kind: PassKind::FadeJump,
+                ..fade
+            },
+            fade,
+        ]
     }
 
     /// Entries of the flag region (the largest level).
@@ -1202,11 +1219,11 @@ impl SynthPlan {
                 },
                 ..*g
             };
-            out.push(if options.fade > 0 {
-                self.fade_dispatch(analysis, &g, options.fade, frame, false)
+            if options.fade > 0 {
+                out.extend(self.fade_dispatches(analysis, &g, options.fade, frame, false));
             } else {
-                g
-            });
+                out.push(g);
+            }
         }
         out
     }
@@ -1259,7 +1276,7 @@ impl SynthPlan {
         if let Some(g) = s.last_mut() {
             g.params.nearest = options.nearest as u32;
             if options.fade > 0 {
-                *g = self.fade_dispatch(analysis, g, options.fade, 0, true);
+                *g = self.fade_dispatches(analysis, g, options.fade, 0, true)[0];
             }
         }
         s
