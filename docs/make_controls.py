@@ -6,8 +6,9 @@
   docs/controls_magnify.png    plain 4x upscale of a 4x-synthesized texture vs --magnify 4
   docs/controls_tileable.png   a --tileable-output texture repeated 2x2
   docs/controls_windows.png    four --window tiles synthesized apart, then put together
-  docs/controls_features.png   a cell exemplar (drawn here) with and without --feature-mask,
-                               the mask resynthesized through each result beside it
+  docs/controls_features.png   a cell exemplar (drawn here) without --feature-mask, with it and in
+                               the paper's mode, the mask resynthesized through each result
+                               beside it
   docs/controls_appearance.png --appearance color against the 8D appearance space
   docs/controls_material.png   a height-derived normal map resynthesized with --also along a
                                swirl, lit, against normals recomputed from the result's height
@@ -192,15 +193,18 @@ with tempfile.TemporaryDirectory() as tmp:
     cmask.save(cmask_path)
     panels = [cells.resize((256, 256), Image.NEAREST), cmask.resize((256, 256), Image.NEAREST)]
     labels = ["exemplar (128 px, shown 2x)", "its feature mask"]
-    for extra, label in [([], "no mask"), (["--feature-mask", cmask_path], "--feature-mask")]:
+    for extra, label in [([], "no mask"),
+                         (["--feature-mask", cmask_path], "--feature-mask (mode both)"),
+                         (["--feature-mask", cmask_path, "--feature-mode", "appearance"],
+                          "--feature-mode appearance")]:
         r_out = os.path.join(tmp, "cells_out.png")
         m_out = os.path.join(tmp, "cells_out_mask.png")
         run("synth", cells_path, "-o", r_out, "--size", str(SIZE), "--seed", "1", "--tileable",
             "--also", f"plain:{cmask_path}={m_out}", *extra)
         panels += [Image.open(r_out), Image.open(m_out)]
         labels += [label, f"{label}: mask carried along"]
-    stack([labelled(panels[:2], labels[:2]), labelled(panels[2:4], labels[2:4]),
-           labelled(panels[4:], labels[4:])]).save("docs/controls_features.png")
+    stack([labelled(panels[i:i + 2], labels[i:i + 2])
+           for i in range(0, len(panels), 2)]).save("docs/controls_features.png")
 
     # Appearance space against plain colour (the paper's Figure 4).
     rows = []

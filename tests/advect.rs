@@ -1487,7 +1487,7 @@ fn frames_continue_with_another_feature_weight() {
     let analysed = |w: f32| {
         let opts = AnalysisOptions {
             feature_mask: Some(mask.clone()),
-            feature_weight: w,
+            feature_weight: Some(w),
             ..AnalysisOptions::default()
         };
         let a = Arc::new(analyze(&ex, &opts, |_| {}).unwrap());

@@ -114,11 +114,11 @@ fn synthetic(width: u32, height: u32, k: u32, tileable: bool, seed: u64) -> Anal
             weight: 1.5,
             clamp: 8.0,
             coverage: 0.25,
-            // Both modes round-trip (file flag 1 and 2).
-            mode: if seed.is_multiple_of(2) {
-                FeatureMode::Sets
-            } else {
-                FeatureMode::Appearance
+            // Every mode round-trips (file flags 1, 2 and 3).
+            mode: match seed % 9 {
+                0 => FeatureMode::Both,
+                3 => FeatureMode::Appearance,
+                _ => FeatureMode::Sets,
             },
         }),
     }
@@ -380,8 +380,12 @@ fn save_load_round_trip_and_overwrite() {
         .map(|e| e.unwrap().file_name())
         .collect();
     assert_eq!(names, vec![std::ffi::OsString::from("a.tsa")]);
-    // Both feature modes survive the file (flags 1 and 2).
-    for (seed, mode) in [(3, FeatureMode::Appearance), (6, FeatureMode::Sets)] {
+    // Every feature mode survives the file (flags 1, 2 and 3).
+    for (seed, mode) in [
+        (3, FeatureMode::Appearance),
+        (6, FeatureMode::Sets),
+        (9, FeatureMode::Both),
+    ] {
         let c = synthetic(16, 16, 2, false, seed);
         assert_eq!(c.feature.map(|f| f.mode), Some(mode));
         c.save(&path).unwrap();
@@ -694,7 +698,7 @@ fn crafted_invalid_values() {
     p2[at + 1] = 5;
     expect_bad(
         &wrap(&p2),
-        &["feature flag is 5, expected 0, 1 or 2"],
+        &["feature flag is 5, expected 0, 1, 2 or 3"],
         1 << 20,
     );
     let mut p2 = payload_of(&bytes).to_vec();

@@ -42,12 +42,28 @@ use image::DynamicImage;
 
 use crate::error::{Error, Result};
 
-/// Default weight of the feature channel: as much variance as all colour channels together.
+/// Default weight of the feature channel with [`super::FeatureMode::Appearance`]: as much
+/// variance as all colour channels together.
 pub const DEFAULT_FEATURE_WEIGHT: f32 = 1.0;
-/// The weight `texsyn` uses with [`super::FeatureMode::Sets`] when none is given: there
-/// the channel only steers the similarity-set search, and at weight 1 it changed nothing
+/// Default weight with [`super::FeatureMode::Sets`] and [`super::FeatureMode::Both`]:
+/// there the channel steers the similarity-set search, and at weight 1 it changed nothing
 /// measurable (stone33, 512x512, seeds 1-2); 4, 16 and 64 gave about the same sets.
 pub const DEFAULT_SETS_FEATURE_WEIGHT: f32 = 16.0;
+/// With [`super::FeatureMode::Both`], the share of the weight the channel has in the
+/// appearance vectors the synthesis matches (the sets get all of it). Measured (fiftieth
+/// session; 512x512, seeds 1-6, cleaned masks, weight 16): at 1/128 both the colour
+/// energy and the breakage fell on all four measured exemplars; at 1/64 the cracked
+/// earth's energy rose 5% over no mask, at 1/32 the GIMP brick's, stone33's and the
+/// cracked earth's (README, *Controls*).
+pub const BOTH_APPEARANCE_SHARE: f32 = 1.0 / 128.0;
+
+/// The default weight of a mode (`AnalysisOptions::feature_weight` = `None`).
+pub fn default_weight(mode: super::FeatureMode) -> f32 {
+    match mode {
+        super::FeatureMode::Appearance => DEFAULT_FEATURE_WEIGHT,
+        super::FeatureMode::Sets | super::FeatureMode::Both => DEFAULT_SETS_FEATURE_WEIGHT,
+    }
+}
 /// Largest accepted feature weight (beyond it colour no longer matters at all).
 pub const MAX_FEATURE_WEIGHT: f32 = 100.0;
 /// Default clamp `dmax` of the signed distance, in exemplar pixels. Measured
@@ -211,7 +227,7 @@ pub fn check_weight(w: f32) -> Result<()> {
     if !(w.is_finite() && (0.0..=MAX_FEATURE_WEIGHT).contains(&w)) {
         return Err(Error::InvalidParameter(format!(
             "feature weight {w}: it must be a number in [0, {MAX_FEATURE_WEIGHT}] (default \
-             {DEFAULT_FEATURE_WEIGHT})"
+             {DEFAULT_SETS_FEATURE_WEIGHT}, {DEFAULT_FEATURE_WEIGHT} in the appearance mode)"
         )));
     }
     Ok(())

@@ -35,7 +35,9 @@
 //!                                           the finest level: its sets left out)
 //! u8  appearance space                      (0 = neighborhood, 1 = color)
 //! u8  feature mask used: 0 none, 1 in the appearance vectors, 2 in the similarity sets
-//!     only (FeatureMode::Sets; older texsyn builds refuse 2 with a clear error)
+//!     only (FeatureMode::Sets; older texsyn builds refuse 2 with a clear error), 3 in
+//!     both (FeatureMode::Both, the sets and a share of the weight in the appearance
+//!     vectors; builds before the fiftieth session refuse 3 with a clear error)
 //! f32 feature weight, f32 feature clamp (dmax), f32 mask coverage   (all 0 without a mask)
 //! ```
 //!
@@ -292,6 +294,7 @@ impl Analysis {
             None => 0,
             Some(FeatureMode::Appearance) => 1,
             Some(FeatureMode::Sets) => 2,
+            Some(FeatureMode::Both) => 3,
         })?;
         let f = self.feature.unwrap_or(FeatureInfo {
             weight: 0.0,
@@ -814,7 +817,7 @@ fn decode_payload(r: &mut impl Input) -> std::result::Result<Analysis, String> {
             }
             None
         }
-        1 | 2 => {
+        1..=3 => {
             if !(weight.is_finite() && (0.0..=MAX_FEATURE_WEIGHT).contains(&weight)) {
                 return Err(format!(
                     "feature weight is {weight}, expected 0..={MAX_FEATURE_WEIGHT}"
@@ -834,14 +837,14 @@ fn decode_payload(r: &mut impl Input) -> std::result::Result<Analysis, String> {
                 weight,
                 clamp,
                 coverage,
-                mode: if has_feature == 1 {
-                    FeatureMode::Appearance
-                } else {
-                    FeatureMode::Sets
+                mode: match has_feature {
+                    1 => FeatureMode::Appearance,
+                    2 => FeatureMode::Sets,
+                    _ => FeatureMode::Both,
                 },
             })
         }
-        f => return Err(format!("feature flag is {f}, expected 0, 1 or 2")),
+        f => return Err(format!("feature flag is {f}, expected 0, 1, 2 or 3")),
     };
 
     if r.remaining() != 0 {

@@ -180,43 +180,53 @@ impl std::str::FromStr for AppearanceSpace {
 pub enum FeatureMode {
     /// The paper's way (section 3.2): the channel joins the appearance vectors that the
     /// synthesis matches and the similarity sets are found with. Structures stay whole
-    /// (on a stone wall the mortar broken into small fragments falls from 27% to 20%),
-    /// but the 8D appearance space then also carries the channel, and the colour texture
-    /// energy rises (4-23% on the measured exemplars).
-    #[default]
+    /// (on a stone wall, with a cleaned mask, the mortar broken into small fragments falls
+    /// from 6.6% to 3.6%), but the 8D appearance space then also carries the channel, and
+    /// the colour texture energy rises (4-58% on the measured exemplars; README,
+    /// *Controls*).
     Appearance,
     /// The channel shapes the similarity sets only: the exemplar places a pixel may jump
     /// to have its colour neighbourhood *and* its feature context, while the appearance
     /// vectors the synthesis matches are those of the colours alone, as without a mask.
-    /// Measured (README, Controls; 512x512, seeds 1-3, weight 16): on a stone wall and a
-    /// brick wall the colour texture energy 2% and 1% below the no-mask figure and 7% less
-    /// of the mortar in small fragments; on cracked earth no change; on the bundled brick
-    /// (whose mortar stays whole anyway) 2% more energy and more fragments. A smaller and
-    /// less reliable structural gain than `Appearance`, without its colour cost. The
-    /// appearance step runs twice, so the analysis takes about a third longer (stone33,
-    /// 156x156: 428-488 against 307-392 ms, three runs each); the runtime is the same.
+    /// A smaller structural gain than `Appearance`, without its colour cost (README,
+    /// *Controls*). The appearance step runs twice, so the analysis takes about a third
+    /// longer (stone33, 156x156: 428-488 against 307-392 ms, three runs each); the
+    /// runtime is the same.
     Sets,
+    /// Both (the default): the similarity sets are searched as with `Sets`, and the
+    /// appearance vectors the synthesis matches carry the channel too, lightly, at
+    /// [`feature::BOTH_APPEARANCE_SHARE`] of the weight (1/128: 0.125 at the default 16).
+    /// Measured (fiftieth session, README, *Controls*; 512x512, seeds 1-6, cleaned
+    /// masks): against no mask, the colour texture energy 2-6% lower and the features
+    /// broken into small fragments 6-38% less on all four measured exemplars (bundled
+    /// brick, GIMP brick, stone wall, cracked earth), where `Sets` left more fragments on
+    /// the bundled brick and `Appearance` raised the energy on three. The analysis costs
+    /// as in `Sets`; the runtime is the same.
+    #[default]
+    Both,
 }
 
 impl FeatureMode {
-    /// `"appearance"` or `"sets"` (the CLI's spelling).
+    /// `"appearance"`, `"sets"` or `"both"` (the CLI's spelling).
     pub fn name(self) -> &'static str {
         match self {
             FeatureMode::Appearance => "appearance",
             FeatureMode::Sets => "sets",
+            FeatureMode::Both => "both",
         }
     }
 }
 
 impl std::str::FromStr for FeatureMode {
     type Err = Error;
-    /// `appearance` or `sets` (any case).
+    /// `appearance`, `sets` or `both` (any case).
     fn from_str(s: &str) -> Result<Self> {
         match s.to_ascii_lowercase().as_str() {
             "appearance" => Ok(FeatureMode::Appearance),
             "sets" => Ok(FeatureMode::Sets),
+            "both" => Ok(FeatureMode::Both),
             _ => Err(Error::InvalidParameter(format!(
-                "feature mode {s:?}: expected \"appearance\" or \"sets\""
+                "feature mode {s:?}: expected \"appearance\", \"sets\" or \"both\""
             ))),
         }
     }
@@ -253,16 +263,17 @@ pub struct AnalysisOptions {
     /// clamped signed-distance field becomes an extra channel of the exemplar before the
     /// Gaussian stack and the neighbourhood PCA (see [`feature`]). `None`: colour only.
     pub feature_mask: Option<FeatureMask>,
-    /// Weight `w` of the feature channel, in `[0, 100]`: at 1 (default) the channel has
-    /// as much variance as all colour channels together. Ignored without a mask.
-    pub feature_weight: f32,
+    /// Weight `w` of the feature channel, in `[0, 100]`: at 1 the channel has as much
+    /// variance as all colour channels together. `None`: the mode's default
+    /// ([`feature::default_weight`]: 16 for `Both` and `Sets`, 1 for `Appearance`).
+    /// Ignored without a mask.
+    pub feature_weight: Option<f32>,
     /// Clamp `dmax` of the signed distance, in exemplar pixels
     /// ([`feature::DEFAULT_FEATURE_CLAMP`], 1).
     pub feature_clamp: f32,
-    /// Where the mask acts: in the appearance vectors (default, the paper) or in the
-    /// similarity sets only. Ignored without a mask. With `Sets`, give a larger
-    /// `feature_weight` ([`feature::DEFAULT_SETS_FEATURE_WEIGHT`], what the CLI uses): at
-    /// 1 the channel barely moves the sets.
+    /// Where the mask acts: in the similarity sets and lightly in the appearance vectors
+    /// (`Both`, the default), in the appearance vectors (`Appearance`, the paper's way)
+    /// or in the similarity sets only (`Sets`). Ignored without a mask.
     pub feature_mode: FeatureMode,
     /// Search the finest level's similarity sets (default). Only a synthesis that
     /// corrects the finest level reads them ([`crate::passes::SynthParams::finest_passes`]
@@ -284,11 +295,45 @@ impl Default for AnalysisOptions {
             threads: 0,
             appearance: AppearanceSpace::Neighborhood,
             feature_mask: None,
-            feature_weight: feature::DEFAULT_FEATURE_WEIGHT,
+            feature_weight: None,
             feature_clamp: feature::DEFAULT_FEATURE_CLAMP,
-            feature_mode: FeatureMode::Appearance,
+            feature_mode: FeatureMode::Both,
             finest_sets: true,
         }
+    }
+}
+
+/// The exemplar's colours alone.
+fn colour_plane(ex: &Exemplar) -> stack::Plane {
+    stack::Plane {
+        width: ex.width,
+        height: ex.height,
+        channels: ex.channels,
+        data: ex.values.clone(),
+    }
+}
+
+/// The exemplar's colours with the feature channel of `mask` at `weight` appended to
+/// each pixel.
+fn with_feature_channel(
+    ex: &Exemplar,
+    mask: &FeatureMask,
+    weight: f32,
+    clamp: f32,
+    tileable: bool,
+) -> stack::Plane {
+    let c = ex.channels as usize;
+    let f = feature::feature_channel(mask, weight, clamp, &ex.values, c, tileable);
+    let mut data = Vec::with_capacity(ex.values.len() + f.len());
+    for (px, v) in ex.values.chunks_exact(c).zip(&f) {
+        data.extend_from_slice(px);
+        data.push(*v);
+    }
+    stack::Plane {
+        width: ex.width,
+        height: ex.height,
+        channels: ex.channels + 1,
+        data,
     }
 }
 
@@ -673,7 +718,10 @@ pub fn analyze(
         )));
     }
     check_analysis_memory(ex.width, ex.height, available_memory())?;
-    feature::check_weight(opts.feature_weight)?;
+    let feature_weight = opts
+        .feature_weight
+        .unwrap_or_else(|| feature::default_weight(opts.feature_mode));
+    feature::check_weight(feature_weight)?;
     feature::check_clamp(opts.feature_clamp)?;
     if let Some(mask) = &opts.feature_mask {
         mask.check_size(ex.width, ex.height)?;
@@ -684,42 +732,25 @@ pub fn analyze(
     // The feature channel, if any, is appended to the colours so that the stack blurs it
     // and the appearance vectors gather it like a colour.
     let plane = match &opts.feature_mask {
-        None => stack::Plane {
-            width: ex.width,
-            height: ex.height,
-            channels: ex.channels,
-            data: ex.values.clone(),
-        },
-        Some(mask) => {
-            let c = ex.channels as usize;
-            let f = feature::feature_channel(
-                mask,
-                opts.feature_weight,
-                opts.feature_clamp,
-                &ex.values,
-                c,
-                tileable,
-            );
-            let mut data = Vec::with_capacity(ex.values.len() + f.len());
-            for (px, v) in ex.values.chunks_exact(c).zip(&f) {
-                data.extend_from_slice(px);
-                data.push(*v);
-            }
-            stack::Plane {
-                width: ex.width,
-                height: ex.height,
-                channels: ex.channels + 1,
-                data,
-            }
-        }
+        None => colour_plane(ex),
+        Some(mask) => with_feature_channel(ex, mask, feature_weight, opts.feature_clamp, tileable),
     };
-    // FeatureMode::Sets: the synthesis's tables come from the colours alone.
-    let colour_plane = (opts.feature_mask.is_some() && opts.feature_mode == FeatureMode::Sets)
-        .then(|| stack::Plane {
-            width: ex.width,
-            height: ex.height,
-            channels: ex.channels,
-            data: ex.values.clone(),
+    // The synthesis's tables: with `Sets`, from the colours alone; with `Both`, from the
+    // colours and the channel at a share of the weight; with `Appearance` (or no mask),
+    // from `plane`, as the similarity sets.
+    let colour_plane = opts
+        .feature_mask
+        .as_ref()
+        .and_then(|mask| match opts.feature_mode {
+            FeatureMode::Sets => Some(colour_plane(ex)),
+            FeatureMode::Both => Some(with_feature_channel(
+                ex,
+                mask,
+                feature_weight * feature::BOTH_APPEARANCE_SHARE,
+                opts.feature_clamp,
+                tileable,
+            )),
+            FeatureMode::Appearance => None,
         });
     let profile = std::env::var_os("TEXSYN_PROFILE").is_some();
     let total = top + 1;
@@ -896,7 +927,7 @@ pub fn analyze(
         levels,
         appearance: opts.appearance,
         feature: opts.feature_mask.as_ref().map(|m| FeatureInfo {
-            weight: opts.feature_weight,
+            weight: feature_weight,
             clamp: opts.feature_clamp,
             coverage: m.coverage() as f32,
             mode: opts.feature_mode,

@@ -136,6 +136,8 @@ pub fn print_appearance(ui: &Ui, a: &Analysis) {
             match f.mode {
                 texsyn::analysis::FeatureMode::Appearance => "appearance vectors",
                 texsyn::analysis::FeatureMode::Sets => "similarity sets only",
+                texsyn::analysis::FeatureMode::Both =>
+                    "similarity sets and, at 1/128 of the weight, the appearance vectors",
             }
         ),
     };

@@ -92,8 +92,9 @@ pub struct AppearanceArgs {
     pub feature_mask: Option<PathBuf>,
 
     /// Weight of the feature channel in [0, 100]: 1 gives it as much variance as all
-    /// colour channels together; larger values favour structure over colour
-    /// [default with a mask: 1; with --feature-mode sets: 16]
+    /// colour channels together; larger values favour structure over colour (with
+    /// --feature-mode both, the default, the sets get it and the appearance vectors
+    /// 1/128 of it) [default: 16; with --feature-mode appearance: 1]
     #[arg(long, value_name = "W", requires = "feature_mask", allow_hyphen_values = true,
           value_parser = parse_feature_weight)]
     pub feature_weight: Option<f32>,
@@ -105,10 +106,11 @@ pub struct AppearanceArgs {
           value_parser = parse_feature_clamp)]
     pub feature_clamp: Option<f32>,
 
-    /// Where the feature mask acts: appearance (the paper: in the appearance vectors the
-    /// synthesis matches; structures stay whole, colour energy rises) or sets (in the
-    /// similarity sets only: the colours match as without a mask, a smaller structural
-    /// gain) [default: appearance]
+    /// Where the feature mask acts: both (the similarity sets, and lightly the appearance
+    /// vectors: both the colour energy and the breakage of features fell on every
+    /// exemplar measured), appearance (the paper: in the appearance vectors the synthesis
+    /// matches; structures stay the most whole, colour energy rises) or sets (in the
+    /// similarity sets only: the colours match as without a mask) [default: both]
     #[arg(long, value_name = "MODE", requires = "feature_mask", value_parser = parse_feature_mode)]
     pub feature_mode: Option<texsyn::analysis::FeatureMode>,
 
@@ -129,13 +131,9 @@ impl AppearanceArgs {
         if let Some(m) = self.feature_mode {
             options.feature_mode = m;
         }
-        options.feature_weight = match (self.feature_weight, options.feature_mode) {
-            (Some(w), _) => w,
-            (None, texsyn::analysis::FeatureMode::Sets) => {
-                texsyn::analysis::feature::DEFAULT_SETS_FEATURE_WEIGHT
-            }
-            (None, texsyn::analysis::FeatureMode::Appearance) => options.feature_weight,
-        };
+        if self.feature_weight.is_some() {
+            options.feature_weight = self.feature_weight;
+        }
         if let Some(path) = &self.feature_mask {
             let mask = texsyn::analysis::FeatureMask::load(path)
                 .map_err(|e| fail(format!("--feature-mask: {e}")))?;
@@ -187,7 +185,7 @@ fn parse_checked(s: &str, check: fn(f32) -> texsyn::Result<()>) -> Result<f32, S
 pub fn parse_feature_mode(s: &str) -> Result<texsyn::analysis::FeatureMode, String> {
     s.trim()
         .parse()
-        .map_err(|_| format!("\"{s}\": the feature mode is appearance or sets"))
+        .map_err(|_| format!("\"{s}\": the feature mode is both, appearance or sets"))
 }
 
 pub fn parse_appearance(s: &str) -> Result<texsyn::analysis::AppearanceSpace, String> {
