@@ -45,39 +45,42 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let s = coords[i];
     var ghost = s;
     var w = 0;
-    if (params.fade_src != 0u) {
+    // Mixed with `opaque`: these uniforms change every frame (see common.wgsl).
+    if ((params.fade_src | u32(opaque)) != 0u) {
         let k = whole_shift();
         let si = upstream(q, k);
+        // fade_jump.wgsl left each pixel's change in the flag region (-1: no jump).
+        let own = coords[params.flag_base + t].x;
+        var left = 0;
         if (si >= 0) {
+            left = max(coords[u32(si) + 2u].x - 1, 0);
+        }
+        // Most pixels neither jumped nor fade: nothing more to read.
+        if (si >= 0 && (own >= 0 || left > 0)) {
             let j = jac_at(i);
             let o = displacement(j, velocity_at(params.origin + q), k);
-            let a = fit_coord(coords[u32(si)] - o);
-            let b = fit_coord(coords[u32(si) + 1u] - o);
-            let left = max(coords[u32(si) + 2u].x - 1, 0);
             // A pop: the pixel jumped, and the jumps around it changed the look (the
             // mean change over its 3x3 neighbourhood). Most jumps are not: seams that
             // moved, patches remade alike. Fading every jump kept two thirds of a
             // vortex's texture blended and doubled its energy (fade.rs).
-            // fade_jump.wgsl left each pixel's change in the flag region.
             var change = 0;
             for (var n = 0; n < 9; n++) {
                 let r = q + vec2<i32>(n % 3 - 1, n / 3 - 1);
-                if (all(r >= vec2<i32>(0)) && all(r < params.size)) {
-                    change += coords[params.flag_base + u32(r.y * params.size.x + r.x)].x;
+                if (all(r >= vec2<i32>(0)) && all(r < (params.size | vec2<i32>(opaque)))) {
+                    change += max(coords[params.flag_base + u32(r.y * params.size.x + r.x)].x, 0);
                 }
             }
-            let region = jumped(s, a, j) && change > 9 * FADE_CHANGE;
-            if (region) {
+            if (own >= 0 && change > 9 * FADE_CHANGE) {
                 // A jump while a ghost shows: the one shown most stays the ghost.
                 if (2 * left > i32(params.fade_frames)) {
-                    ghost = b;
+                    ghost = fit_coord(coords[u32(si) + 1u] - o);
                     w = left;
                 } else {
-                    ghost = a;
+                    ghost = fit_coord(coords[u32(si)] - o);
                     w = i32(params.fade_frames);
                 }
             } else if (left > 0) {
-                ghost = b;
+                ghost = fit_coord(coords[u32(si) + 1u] - o);
                 w = left;
             }
         }
@@ -87,7 +90,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     coords[d + 1u] = ghost;
     coords[d + 2u] = vec2<i32>(w, 0);
     let p = q - params.window_offset;
-    if (any(p < vec2<i32>(0)) || any(p >= params.window_size)) {
+    if (any(p < vec2<i32>(0)) || any(p >= (params.window_size | vec2<i32>(opaque)))) {
         return;
     }
     var v = color_at(s);

@@ -1,6 +1,6 @@
 // The first pass of an advection frame's fade (mirror: src/passes/fade_jump.rs): per
 // pixel of the finest level's region, how much a jump of its coordinate changed its grey
-// level (0 where it moved with the flow), into the flag region, which the frame no
+// level (-1 where it moved with the flow), into the flag region, which the frame no
 // longer needs; fade.wgsl then sums it over each pixel's 3x3 neighbourhood. Once per
 // pixel, rather than nine times in fade.wgsl (measured: the fade took about a sixth of
 // a 256x256 frame that way).

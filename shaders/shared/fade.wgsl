@@ -25,21 +25,18 @@ fn upstream(q: vec2<i32>, k: vec2<i32>) -> i32 {
     var src = q - k;
     if (PERIODIC) {
         src = vec2<i32>(wrap(src.x, params.size.x), wrap(src.y, params.size.y));
-    } else if (any(src < vec2<i32>(0)) || any(src >= params.size)) {
+    } else if (any(src < vec2<i32>(0)) || any(src >= (params.size | vec2<i32>(opaque)))) {
         return -1;
     }
     return i32(params.fade_src + 3u * u32(src.y * params.size.x + src.x));
 }
 
-// How much region pixel q's colour changed by a jump of its coordinate (grey levels,
-// 0 where it did not jump, outside the region or without history).
+// How much region pixel q's grey level changed by a jump of its coordinate (0..255), or
+// -1 where it did not jump or has no history.
 fn jump_change(q: vec2<i32>, k: vec2<i32>) -> i32 {
-    if (any(q < vec2<i32>(0)) || any(q >= params.size)) {
-        return 0;
-    }
     let si = upstream(q, k);
     if (si < 0) {
-        return 0;
+        return -1;
     }
     let i = params.coord_base + u32(q.y * params.size.x + q.x);
     let j = jac_at(i);
@@ -47,7 +44,7 @@ fn jump_change(q: vec2<i32>, k: vec2<i32>) -> i32 {
     let a = fit_coord(coords[u32(si)] - o);
     let s = coords[i];
     if (!jumped(s, a, j)) {
-        return 0;
+        return -1;
     }
     let d = abs(color_at(s) - color_at(a));
     return (d.x + 2 * d.y + d.z) >> 2u;

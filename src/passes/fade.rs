@@ -129,22 +129,21 @@ impl<'a> Frame<'a> {
         fit_coord([c[0] - o[0], c[1] - o[1]], p)
     }
 
-    /// How much region pixel `q`'s grey level changed by a jump of its coordinate (0
-    /// where it did not jump, outside the region or without history; `jump_change`).
+    /// How much region pixel `q`'s grey level changed by a jump of its coordinate
+    /// (0..255), or -1 where it did not jump or has no history (`jump_change`).
     pub(super) fn jump_change(&self, q: [i32; 2]) -> i32 {
-        let p = self.p;
-        if q[0] < 0 || q[1] < 0 || q[0] >= p.size[0] || q[1] >= p.size[1] {
-            return 0;
-        }
         let Some(si) = self.upstream(q) else {
-            return 0;
+            return -1;
         };
         let i = self.index(q);
         let (s, a) = (self.coords[i], self.carried(q, si, 0));
-        if !jumped(p, s, a, self.jac[i]) {
-            return 0;
+        if !jumped(self.p, s, a, self.jac[i]) {
+            return -1;
         }
-        let (cs, ca) = (color_at(p, self.colors, s), color_at(p, self.colors, a));
+        let (cs, ca) = (
+            color_at(self.p, self.colors, s),
+            color_at(self.p, self.colors, a),
+        );
         let d = |c: usize| (cs[c] as i32 - ca[c] as i32).abs();
         (d(0) + 2 * d(1) + d(2)) >> 2
     }
@@ -152,31 +151,32 @@ impl<'a> Frame<'a> {
     /// Region pixel `q`'s new fade state: its ghost and the frames the ghost has left.
     fn state(&self, q: [i32; 2]) -> ([i32; 2], i32) {
         let p = self.p;
-        let i = self.index(q);
-        let s = self.coords[i];
+        let s = self.coords[self.index(q)];
         if p.fade_src == 0 {
             return (s, 0);
         }
         let Some(si) = self.upstream(q) else {
             return (s, 0);
         };
-        let (a, b) = (self.carried(q, si, 0), self.carried(q, si, 1));
+        // `fade_jump` left each pixel's change in the flag region (-1: no jump).
+        let flag =
+            |r: [i32; 2]| self.coords[p.flag_base as usize + (r[1] * p.size[0] + r[0]) as usize][0];
+        let own = flag(q);
         let left = (self.coords[si + 2][0] - 1).max(0);
-        // `fade_jump` left each pixel's change in the flag region.
         let change: i32 = (0..9)
             .map(|n| [q[0] + n % 3 - 1, q[1] + n / 3 - 1])
             .filter(|r| r[0] >= 0 && r[1] >= 0 && r[0] < p.size[0] && r[1] < p.size[1])
-            .map(|r| self.coords[p.flag_base as usize + (r[1] * p.size[0] + r[0]) as usize][0])
+            .map(|r| flag(r).max(0))
             .sum();
-        if jumped(p, s, a, self.jac[i]) && change > 9 * FADE_CHANGE {
+        if own >= 0 && change > 9 * FADE_CHANGE {
             // A jump while a ghost shows: the one shown most stays the ghost.
             if 2 * left > p.fade_frames as i32 {
-                (b, left)
+                (self.carried(q, si, 1), left)
             } else {
-                (a, p.fade_frames as i32)
+                (self.carried(q, si, 0), p.fade_frames as i32)
             }
         } else if left > 0 {
-            (b, left)
+            (self.carried(q, si, 1), left)
         } else {
             (s, 0)
         }

@@ -1,6 +1,6 @@
 //! Mirror of `shaders/fade_jump.wgsl`: the first pass of an advection frame's fade.
 //! Per pixel of the finest level's region, how much a jump of its coordinate changed its
-//! grey level (0 where it moved with the flow; [`super::fade`]), into the flag region
+//! grey level (-1 where it moved with the flow; [`super::fade`]), into the flag region
 //! (`[change, 0]` at `flag_base` + the pixel's region index), which the frame no longer
 //! needs; the fade pass sums it over each pixel's 3x3 neighbourhood.
 
