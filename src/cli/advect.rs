@@ -71,10 +71,12 @@ pub struct AdvectArgs {
     #[arg(long, conflicts_with_all = ["advect_finest", "resynthesize"])]
     pub keep_look: bool,
 
-    /// Fade jumps in over N frames instead of popping (0: off): where a pixel's texture
-    /// changes other than by moving with the flow (a renewed patch, a moved seam), its old
+    /// Fade pops in over N frames (0: off): where a region's texture changes other than
+    /// by moving with the flow (a renewed patch and the detail remade under it), its old
     /// content moves on with the flow and fades out while the new one fades in, with the
-    /// contrast kept. A uniform flow of whole pixels is unaffected
+    /// contrast kept. Fewer pops (gravel, vortex, --keep-look --fade 4: 4x fewer) for a
+    /// higher texture energy while regions fade (gravel: x1.27 over 300 frames against
+    /// x1.13) and a costlier frame. A uniform flow of whole pixels is unaffected
     #[arg(long, value_name = "N", default_value_t = 0)]
     pub fade: u32,
 

@@ -341,14 +341,20 @@ pub struct AdvectOptions {
     /// tens of frames most of it is new, and whole regions change at once where the
     /// coarse level is renewed), and a frame costs more. Off by default.
     pub keep_look: bool,
-    /// Fade jumps in over this many frames (0: off, at most [`MAX_FADE_FRAMES`]): a pixel
-    /// whose coordinate lands away from where the flow carried the previous frame's (a
-    /// renewed or remade patch, a moved seam) shows a blend of its old content, carried
-    /// on with the flow, and its new one, the old fading out over the frames, instead of
-    /// changing at once (`passes::fade`). The blend keeps the contrast
+    /// Fade pops in over this many frames (0: off, the default; at most
+    /// [`MAX_FADE_FRAMES`]): a pixel whose coordinate lands away from where the flow
+    /// carried the previous frame's, where such jumps changed the look of its
+    /// neighbourhood (a renewed or remade patch), shows a blend of its old content,
+    /// carried on with the flow, and its new one, the old fading out over the frames,
+    /// instead of changing at once (`passes::fade`). The blend keeps the contrast
     /// (variance-preserving). Coordinates (`read_coords`, the CPU mirror) are not
-    /// blended, only the colours; a uniform flow of whole pixels has no jumps and moves
-    /// the texture as exactly as without.
+    /// blended, only the colours; a uniform flow of whole pixels moves the texture as
+    /// exactly as without. Measured (fiftieth session, lavapipe; 256x256, 300 frames of
+    /// the default vortex, with [`Self::keep_look`], 4 frames against none): the 8x8
+    /// blocks that pop per frame gravel 0.36% against 1.58%, grass 0.07% against 0.27%;
+    /// the texture energy at frame 300 over frame 0's gravel x1.27 against x1.13 (blended
+    /// pixels match no exemplar neighbourhood), the others within 6% of it; about 25 ms
+    /// more per 512x512 frame (README, *Advection*).
     pub fade: u32,
 }
 
