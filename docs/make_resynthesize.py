@@ -1,14 +1,15 @@
 #!/usr/bin/env python3
 """Regenerates docs/advection_resynthesize.png (README, Advection): frame 300 of the default
-vortex, 256x256, with the levels below the finest advected (the default) and with
-`--keep-look` (the advected levels below the coarsest one remade wherever the flow turns them,
-the coarsest renewed where it has turned by about 5 degrees), for the bundled brick and gravel;
-next to each, where frame 300 differs from frame 299 moved by the flow (white: a change of 1/3
-of full scale or more), which is the popping the option costs.
+vortex, 256x256, with the levels below the finest advected (the default), with `--keep-look`
+(the advected levels below the coarsest one remade wherever the flow turns them, the coarsest
+renewed where it has turned by about 5 degrees) and with `--keep-look --fade 4` (pops faded in
+over 4 frames), for the bundled brick and gravel; next to each, where frame 300 differs from
+frame 299 moved by the flow (white: a change of 1/3 of full scale or more), which is the
+popping `--keep-look` costs and `--fade` spreads over frames.
 
     cargo build --release && python3 docs/make_resynthesize.py
 
-Needs Pillow and NumPy. Run from the repository root. Takes about two minutes on lavapipe.
+Needs Pillow and NumPy. Run from the repository root. Takes about four minutes on lavapipe.
 """
 import os
 import subprocess
@@ -18,7 +19,8 @@ import numpy as np
 from PIL import Image, ImageDraw
 
 EXEMPLARS = ["brick", "gravel"]
-CONFIGS = [("default", []), ("--keep-look", ["--keep-look"])]
+CONFIGS = [("default", []), ("--keep-look", ["--keep-look"]),
+           ("--keep-look --fade 4", ["--keep-look", "--fade", "4"])]
 SIZE, GAP, LABEL, OMEGA = 256, 8, 14, 0.01
 BIN = os.environ.get("TEXSYN", "target/release/texsyn")
 
@@ -52,7 +54,7 @@ with tempfile.TemporaryDirectory() as tmp:
             tiles.append((f"{name}, {label}, frame 300", Image.fromarray(last.astype(np.uint8))))
             tiles.append((f"change from frame 299", Image.fromarray(change)))
 
-cols = 4
+cols = 2 * len(CONFIGS)
 rows = (len(tiles) + cols - 1) // cols
 width = cols * SIZE + (cols - 1) * GAP
 height = rows * (LABEL + SIZE) + (rows - 1) * GAP

@@ -2,15 +2,17 @@
 // finest level's colours, where a pixel whose coordinate jumped since the previous frame
 // (it landed more than FADE_JUMP from where the flow carried the previous frame's) in a
 // neighbourhood whose look the jumps changed (a renewed or remade patch: a pop) fades
-// from what it showed to its new content over params.fade_frames frames. Per pixel of the finest level's
-// region the fade state holds the coordinate (A), the ghost's coordinate (B) and the
-// frames the ghost has left (w); this frame reads the state at params.fade_src (none: 0)
-// k pixels upstream, moves A and B with the flow as advect.wgsl moves coordinates, and
-// writes the new state at params.fade_dst (two halves, swapped every frame, so no pixel
-// reads what another writes). Ghosts are coordinates, not colours: they move with the
-// texture without being resampled, so nothing blurs. The two colours are blended so that
-// the contrast stays (variance-preserving, around the exemplar's mean colour): a linear
-// blend of two unrelated patches is a flat, washed-out patch halfway through.
+// from what it showed to its new content over params.fade_frames frames. Per pixel of
+// the finest level's region the fade state holds the coordinate (A), the ghost's
+// coordinate (B) and the frames the ghost has left (w); this frame reads the state at
+// params.fade_src (none: 0) k pixels upstream, moves B (or A, for a new ghost) with the
+// flow as advect.wgsl moves coordinates, and writes the new state at params.fade_dst (two
+// halves, swapped every frame, so no pixel reads what another writes). fade_jump.wgsl
+// has left each pixel's jump in the flag region. Ghosts are coordinates, not colours:
+// they move with the texture without being resampled, so nothing blurs. The two colours
+// are blended so that the contrast stays (variance-preserving, around the exemplar's
+// mean colour): a linear blend of two unrelated patches is a flat, washed-out patch
+// halfway through.
 #include "shared/common.wgsl"
 #include "shared/aniso.wgsl"
 #include "shared/advect.wgsl"
