@@ -1193,7 +1193,8 @@ fn surface_advection_gpu_matches_cpu() {
     let plan = adv.plan().clone();
     let jac = plan.jacobians();
     let surface = plan.surface_words().0;
-    let mut cpu = vec![[0i32; 2]; plan.coord_buffer_len() as usize];
+    // Room for the fade state too (frames 5 and 6 fade).
+    let mut cpu = vec![[0i32; 2]; plan.advect_buffer_len(true) as usize];
     run_cpu_frame(
         &a,
         &plan.advect_first_schedule(&a, &o),
@@ -1211,23 +1212,24 @@ fn surface_advection_gpu_matches_cpu() {
     assert!(v.iter().any(|p| p[0] != 0.0 || p[1] != 0.0));
     let q: Vec<[i32; 2]> = v.iter().map(|&p| quantize_velocity(p, 1.0)).collect();
     // Frame 3 re-synthesizes two levels below the finest (their fills included), frame
-    // 4 keeps the look (`keep_look`: remade levels on the atlas).
-    for f in 0..4u64 {
+    // 4 keeps the look (`keep_look`: remade levels on the atlas), frames 5 and 6 fade
+    // (the first without fade state, the second reading it).
+    for f in 0..6u64 {
         let o = AdvectOptions {
             resynthesize: if f == 2 { 2 } else { 0 },
-            keep_look: f == 3,
+            keep_look: f >= 3,
             levels: if f >= 2 { 4 } else { o.levels },
+            fade: if f >= 4 { 4 } else { 0 },
             ..o
         };
         adv.set_options(ctx(), o).unwrap();
+        let s = adv.frame_schedule();
         adv.step(ctx(), &v, 1.0).unwrap();
-        let s = plan.advect_schedule(&a, &o, f);
-        run_cpu_frame(&a, &s, &mut cpu, &jac, &surface, &q);
-        assert!(
-            adv.read_coords(ctx()).unwrap() == cpu,
-            "frame {} differs",
-            f + 1
-        );
+        let out = run_cpu_frame(&a, &s, &mut cpu, &jac, &surface, &q).unwrap();
+        let gpu = adv.read_coords(ctx()).unwrap();
+        assert!(gpu[..] == cpu[..gpu.len()], "frame {} differs", f + 1);
+        let rgba: Vec<u8> = out.colors.iter().flatten().copied().collect();
+        assert_eq!(adv.read_rgba8(ctx()).unwrap(), rgba, "frame {}", f + 1);
     }
     // Per-vertex vectors: the wrong count and NaN are errors.
     let n = prep.atlas.mesh.positions.len();
