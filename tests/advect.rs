@@ -1098,6 +1098,12 @@ fn advect_cli() {
         (vec!["--flow", "vortex:0.5,0.5,0.02,0"], "core radius", 2),
         (vec!["--flow", "vortex:0.5,0.5,0.02,-0.1"], "core radius", 2),
         (vec!["--flow", "image:missing.png"], "missing.png", 1),
+        (
+            vec!["--flow", "vortex", "--fade", "65"],
+            "a fade of 65 frames",
+            1,
+        ),
+        (vec!["--flow", "vortex", "--fade", "-1"], "--fade", 2),
     ] {
         let mut a = vec![
             "advect",

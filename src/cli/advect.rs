@@ -77,7 +77,12 @@ pub struct AdvectArgs {
     /// contrast kept. Fewer pops (gravel, vortex, --keep-look --fade 4: 4x fewer) for a
     /// higher texture energy while regions fade (gravel: x1.27 over 300 frames against
     /// x1.13) and a costlier frame. A uniform flow of whole pixels is unaffected
-    #[arg(long, value_name = "N", default_value_t = 0)]
+    #[arg(
+        long,
+        value_name = "N",
+        default_value_t = 0,
+        allow_hyphen_values = true
+    )]
     pub fade: u32,
 
     /// Levels each frame works on (the finest ones): the finest is upsampled from the
