@@ -19,8 +19,9 @@
 #include "shared/exemplar_color.wgsl"
 #include "shared/fade.wgsl"
 
-// A pop: the jumps of the pixel's 3x3 neighbourhood changed its grey level by more than
-// this on average (of 255).
+// A pop: the jumps of the pixel's 3x3 neighbourhood changed its colour by more than this
+// on average (of 255; per pixel (|dR| + 2 |dG| + |dB|) / 4, the sum over the 3x3 against 9
+// times this, also where the region's edge clips the neighbourhood).
 const FADE_CHANGE: i32 = 60;
 
 // The new colour c and the ghost's g, the ghost at w / (N + 1): mean + (a (c - mean) +
@@ -53,9 +54,11 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         let si = upstream(q, k);
         // fade_jump.wgsl left each pixel's change in the flag region (-1: no jump).
         let own = coords[params.flag_base + t].x;
+        // At most N: a fade saved under a longer N (set_options between frames) goes on
+        // with the new one.
         var left = 0;
         if (si >= 0) {
-            left = max(coords[u32(si) + 2u].x - 1, 0);
+            left = clamp(coords[u32(si) + 2u].x - 1, 0, i32(params.fade_frames));
         }
         // Most pixels neither jumped nor fade: nothing more to read.
         if (si >= 0 && (own >= 0 || left > 0)) {
@@ -65,9 +68,14 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             // mean change over its 3x3 neighbourhood). Most jumps are not: seams that
             // moved, patches remade alike. Fading every jump kept two thirds of a
             // vortex's texture blended and doubled its energy (fade.rs).
+            // Around one period of a periodic output, clipped at the region's edges
+            // otherwise.
             var change = 0;
             for (var n = 0; n < 9; n++) {
-                let r = q + vec2<i32>(n % 3 - 1, n / 3 - 1);
+                var r = q + vec2<i32>(n % 3 - 1, n / 3 - 1);
+                if (PERIODIC) {
+                    r = vec2<i32>(wrap(r.x, params.size.x), wrap(r.y, params.size.y));
+                }
                 if (all(r >= vec2<i32>(0)) && all(r < (params.size | vec2<i32>(opaque)))) {
                     change += max(coords[params.flag_base + u32(r.y * params.size.x + r.x)].x, 0);
                 }

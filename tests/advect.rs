@@ -1637,8 +1637,24 @@ fn fading_frames_match_cpu_and_fade_pops() {
     }
     eprintln!("fading: {faded} pixel-frames of {}", 12 * region);
     assert!(faded > 0 && shown > 0, "no pixel faded");
+    // A shorter fade between frames: the fades under way go on with it (at most 2 frames
+    // left), GPU = CPU.
+    adv.set_options(ctx(), AdvectOptions { fade: 2, ..opts })
+        .unwrap();
+    let v = flow.sample(w, h, 12.0).unwrap();
+    let q: Vec<[i32; 2]> = v.iter().map(|&v| quantize_velocity(v, 1.0)).collect();
+    let schedule = adv.frame_schedule();
+    adv.step(ctx(), &v, 1.0).unwrap();
+    run_cpu_frame(&a, &schedule, &mut cpu, &jac, &[], &q).unwrap();
+    assert!(
+        adv.read_coords(ctx()).unwrap() == cpu,
+        "shorter fade differs"
+    );
+    let dst = schedule.last().unwrap().params.fade_dst as usize;
+    assert!((0..region).all(|t| (0..=2).contains(&cpu[dst + 3 * t + 2][0])));
     // Fading turned on between frames.
-    let mut adv = Advection::new(ctx(), synth, &params, AdvectOptions::keep_look()).unwrap();
+    let mut adv =
+        Advection::new(ctx(), synth.clone(), &params, AdvectOptions::keep_look()).unwrap();
     let plain_len = plan.coord_buffer_len() as usize;
     let mut cpu = vec![[0i32; 2]; plan.advect_buffer_len(true) as usize];
     run_cpu_frame(
@@ -1667,6 +1683,45 @@ fn fading_frames_match_cpu_and_fade_pops() {
         assert!(gpu[..] == cpu[..gpu.len()], "frame {} differs", f + 1);
         let rgba: Vec<u8> = out.colors.iter().flatten().copied().collect();
         assert_eq!(adv.read_rgba8(ctx()).unwrap(), rgba, "frame {}", f + 1);
+    }
+    // Turned on between `encode_step` and the submission of its encoder: the recorded
+    // frame is kept (the enlarged buffer is filled in the next frame's encoder).
+    let mut adv =
+        Advection::new(ctx(), synth.clone(), &params, AdvectOptions::keep_look()).unwrap();
+    let mut cpu = vec![[0i32; 2]; plan.advect_buffer_len(true) as usize];
+    run_cpu_frame(
+        &a,
+        &plan.advect_first_schedule(&a, &AdvectOptions::keep_look()),
+        &mut cpu,
+        &jac,
+        &[],
+        &[],
+    );
+    for f in 0..3u64 {
+        let v = flow.sample(w, h, f as f32).unwrap();
+        let q: Vec<[i32; 2]> = v.iter().map(|&v| quantize_velocity(v, 1.0)).collect();
+        let schedule = adv.frame_schedule();
+        let buffer = wgpu::util::DeviceExt::create_buffer_init(
+            &ctx().device,
+            &wgpu::util::BufferInitDescriptor {
+                label: None,
+                contents: bytemuck::cast_slice(&v),
+                usage: wgpu::BufferUsages::STORAGE,
+            },
+        );
+        let mut encoder = ctx().device.create_command_encoder(&Default::default());
+        adv.encode_step(ctx(), &mut encoder, &buffer, 1.0).unwrap();
+        if f == 0 {
+            adv.set_options(ctx(), opts).unwrap();
+        }
+        ctx().queue.submit([encoder.finish()]);
+        run_cpu_frame(&a, &schedule, &mut cpu, &jac, &[], &q).unwrap();
+        let gpu = adv.read_coords(ctx()).unwrap();
+        assert!(
+            gpu[..] == cpu[..gpu.len()],
+            "encoded frame {} differs",
+            f + 1
+        );
     }
     ctx().take_uncaptured_errors().unwrap();
 }

@@ -182,8 +182,9 @@ pub enum FeatureMode {
     /// synthesis matches and the similarity sets are found with. Structures stay whole
     /// (on a stone wall, with a cleaned mask, the mortar broken into small fragments falls
     /// from 6.6% to 3.6%), but the 8D appearance space then also carries the channel, and
-    /// the colour texture energy rises (4-58% on the measured exemplars; README,
-    /// *Controls*).
+    /// the colour texture energy rises where the colours already show the features (4-58%
+    /// on three of the four measured exemplars; README, *Controls*). The mode for
+    /// structure the colours do not show.
     Appearance,
     /// The channel shapes the similarity sets only: the exemplar places a pixel may jump
     /// to have its colour neighbourhood *and* its feature context, while the appearance
@@ -197,11 +198,13 @@ pub enum FeatureMode {
     /// appearance vectors the synthesis matches carry the channel too, lightly, at
     /// [`feature::BOTH_APPEARANCE_SHARE`] of the weight (1/128: 0.125 at the default 16).
     /// Measured (fiftieth session, README, *Controls*; 512x512, seeds 1-6, cleaned
-    /// masks): against no mask, the colour texture energy 2-6% lower and the features
+    /// masks): against no mask, the colour texture energy 1-6% lower and the features
     /// broken into small fragments 6-38% less on all four measured exemplars (bundled
     /// brick, GIMP brick, stone wall, cracked earth), where `Sets` left more fragments on
-    /// the bundled brick and `Appearance` raised the energy on three. The analysis costs
-    /// as in `Sets`; the runtime is the same.
+    /// the bundled brick and `Appearance` raised the energy on three. With raw
+    /// thresholded masks the energy fell on all four, the breakage on two of them. Where
+    /// the colours do not show the structure at all it barely helps: use `Appearance`.
+    /// The analysis costs as in `Sets`; the runtime is the same.
     #[default]
     Both,
 }

@@ -108,9 +108,10 @@ pub struct AppearanceArgs {
 
     /// Where the feature mask acts: both (the similarity sets, and lightly the appearance
     /// vectors: both the colour energy and the breakage of features fell on every
-    /// exemplar measured), appearance (the paper: in the appearance vectors the synthesis
-    /// matches; structures stay the most whole, colour energy rises) or sets (in the
-    /// similarity sets only: the colours match as without a mask) [default: both]
+    /// exemplar measured with a clean mask), appearance (the paper: in the appearance
+    /// vectors the synthesis matches; structures stay the most whole, colour energy rises;
+    /// the mode for structure the colours do not show) or sets (in the similarity sets
+    /// only: the colours match as without a mask) [default: both]
     #[arg(long, value_name = "MODE", requires = "feature_mask", value_parser = parse_feature_mode)]
     pub feature_mode: Option<texsyn::analysis::FeatureMode>,
 

@@ -52,6 +52,10 @@ pub struct Advection {
     /// Whether the coordinate buffer holds the fade state the next frame reads (the
     /// previous frame faded).
     fade_state: bool,
+    /// The coordinate buffer before [`Self::set_options`] enlarged it, whose contents the
+    /// next frame (or read) copies into `coords` first: in the frame's own encoder, so
+    /// that a frame recorded by [`Self::encode_step`] but not yet submitted is not lost.
+    grow_from: Option<wgpu::Buffer>,
 }
 
 impl Advection {
@@ -182,6 +186,7 @@ impl Advection {
             quantize_layout,
             frame: 0,
             fade_state: options.fade > 0,
+            grow_from: None,
         };
         let schedule = this
             .plan
@@ -359,8 +364,9 @@ impl Advection {
 
     /// Changes the options between frames. Turning fading on ([`AdvectOptions::fade`])
     /// on an advection made without it enlarges its coordinate buffer (refused where the
-    /// device cannot bind the larger one); the next frame then starts every pixel
-    /// unfaded.
+    /// device cannot bind the larger one; the contents are copied in the next frame's
+    /// encoder, so this may come between [`Self::encode_step`] and the submission of its
+    /// encoder); the next frame then starts every pixel unfaded.
     pub fn set_options(&mut self, ctx: &GpuContext, options: AdvectOptions) -> Result<()> {
         self.synthesizer.check_context(ctx)?;
         options.check_for_pyramid(self.plan.levels.len())?;
@@ -377,18 +383,17 @@ impl Advection {
                 });
             }
             let grown = ctx.scoped(|| {
-                let grown = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                ctx.device.create_buffer(&wgpu::BufferDescriptor {
                     label: Some("texsyn advected coords"),
                     size: need,
                     usage: self.coords.usage(),
                     mapped_at_creation: false,
-                });
-                let mut encoder = ctx.device.create_command_encoder(&Default::default());
-                encoder.copy_buffer_to_buffer(&self.coords, 0, &grown, 0, self.coords.size());
-                ctx.queue.submit([encoder.finish()]);
-                grown
+                })
             })?;
-            self.coords = grown;
+            // The copy waits for the next frame's encoder (see `grow_from`); a buffer
+            // enlarged twice before it is copied from the first.
+            let old = std::mem::replace(&mut self.coords, grown);
+            self.grow_from.get_or_insert(old);
         }
         self.options = options;
         Ok(())
@@ -491,6 +496,11 @@ impl Advection {
         dt: f32,
     ) -> Result<Vec<(PassKind, usize, std::time::Duration)>> {
         self.upload_velocity(ctx, velocity, dt)?;
+        if self.grow_from.is_some() {
+            let mut encoder = ctx.device.create_command_encoder(&Default::default());
+            self.record_grow(ctx, &mut encoder)?;
+            ctx.scoped(|| ctx.queue.submit([encoder.finish()]))?;
+        }
         wait(ctx)?;
         let schedule = self.frame_schedule();
         let mut out = Vec::with_capacity(schedule.len());
@@ -593,7 +603,16 @@ impl Advection {
         self.record_frame(ctx, encoder)
     }
 
+    /// Records the pending copy into an enlarged coordinate buffer (see `grow_from`).
+    fn record_grow(&mut self, ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder) -> Result<()> {
+        if let Some(old) = self.grow_from.take() {
+            ctx.scoped(|| encoder.copy_buffer_to_buffer(&old, 0, &self.coords, 0, old.size()))?;
+        }
+        Ok(())
+    }
+
     fn record_frame(&mut self, ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder) -> Result<()> {
+        self.record_grow(ctx, encoder)?;
         let schedule = self.frame_schedule();
         self.record(ctx, encoder, &schedule, false)?;
         self.frame_done();
@@ -622,7 +641,13 @@ impl Advection {
                 mapped_at_creation: false,
             });
             let mut encoder = ctx.device.create_command_encoder(&Default::default());
-            encoder.copy_buffer_to_buffer(&self.coords, 0, &rb, 0, bytes);
+            // Enlarged since the last frame: the contents are still in the old buffer
+            // (the new one's fade state is zeros, as after the copy).
+            let (source, size) = match &self.grow_from {
+                Some(old) => (old, old.size()),
+                None => (&self.coords, bytes),
+            };
+            encoder.copy_buffer_to_buffer(source, 0, &rb, 0, size);
             ctx.queue.submit([encoder.finish()]);
             rb
         })?;

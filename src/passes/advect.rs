@@ -353,7 +353,7 @@ pub struct AdvectOptions {
     /// the default vortex, with [`Self::keep_look`], 4 frames against none): the 8x8
     /// blocks that pop per frame gravel 0.36% against 1.58%, grass 0.07% against 0.27%;
     /// the texture energy at frame 300 over frame 0's gravel x1.27 against x1.13 (blended
-    /// pixels match no exemplar neighbourhood), the others within 6% of it; about 25 ms
+    /// pixels match no exemplar neighbourhood), the others within 7% of it; about 25 ms
     /// more per 512x512 frame (README, *Advection*).
     pub fade: u32,
 }

@@ -136,6 +136,11 @@ pub struct PassParams {
 /// Dynamic uniform offsets must be multiples of this (the WebGPU default limit).
 pub const PARAMS_STRIDE: u64 = 256;
 
+// Each dispatch's parameters sit in one stride of the uniform buffer, and WGSL rounds the
+// struct to a multiple of 8 bytes (its vec2 alignment): both must hold as fields are added.
+const _: () = assert!(std::mem::size_of::<PassParams>() as u64 <= PARAMS_STRIDE);
+const _: () = assert!(std::mem::size_of::<PassParams>() % 8 == 0);
+
 /// Integer hash with good avalanche ("lowbias32", C. Wellons). Same in WGSL.
 #[inline]
 pub fn hash32(mut x: u32) -> u32 {

@@ -84,9 +84,10 @@ pub fn run_cpu_surface(
     run_cpu_frame(analysis, schedule, coords, jac, surface, &[])
 }
 
-/// [`run_cpu_surface`] with an advection frame's velocity field (1/16 output pixel per
-/// frame, one per output-window pixel); `coords` then also holds the flag region
-/// ([`SynthPlan::flag_base`]).
+/// [`run_cpu_surface`] with an advection frame's velocity field (1/1024 output pixel per
+/// frame, one per output-window pixel); `coords` then also holds the flag region and the
+/// drift ([`SynthPlan::coord_buffer_len`]), and with fading the fade state
+/// ([`SynthPlan::advect_buffer_len`]`(true)` entries).
 pub fn run_cpu_frame(
     analysis: &Analysis,
     schedule: &[Dispatch],
