@@ -139,7 +139,7 @@ pub const PARAMS_STRIDE: u64 = 256;
 // Each dispatch's parameters sit in one stride of the uniform buffer, and WGSL rounds the
 // struct to a multiple of 8 bytes (its vec2 alignment): both must hold as fields are added.
 const _: () = assert!(std::mem::size_of::<PassParams>() as u64 <= PARAMS_STRIDE);
-const _: () = assert!(std::mem::size_of::<PassParams>() % 8 == 0);
+const _: () = assert!(std::mem::size_of::<PassParams>().is_multiple_of(8));
 
 /// Integer hash with good avalanche ("lowbias32", C. Wellons). Same in WGSL.
 #[inline]
