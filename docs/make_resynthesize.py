@@ -9,7 +9,7 @@ popping `--keep-look` costs and `--fade` spreads over frames.
 
     cargo build --release && python3 docs/make_resynthesize.py
 
-Needs Pillow and NumPy. Run from the repository root. Takes about four minutes on lavapipe.
+Needs Pillow and NumPy. Run from the repository root. Takes about two minutes on lavapipe.
 """
 import os
 import subprocess
