@@ -106,6 +106,33 @@ fn step_matches_cpu(
     adv.read_coords(ctx()).unwrap() == cpu
 }
 
+/// Frame 0 of `plan` with `opts` on the CPU mirror, in a buffer of `len` entries (the
+/// advection's coordinate buffer, or longer to hold fade state turned on later).
+fn cpu_frame0(a: &Analysis, plan: &SynthPlan, opts: &AdvectOptions, len: u64) -> Vec<[i32; 2]> {
+    let mut cpu = vec![[0i32; 2]; len as usize];
+    run_cpu_frame(
+        a,
+        &plan.advect_first_schedule(a, opts),
+        &mut cpu,
+        &plan.jacobians(),
+        &[],
+        &[],
+    );
+    cpu
+}
+
+/// A caller-owned velocity buffer (`Advection::encode_step`) holding `v`.
+fn velocity_buffer(v: &[[f32; 2]]) -> wgpu::Buffer {
+    wgpu::util::DeviceExt::create_buffer_init(
+        &ctx().device,
+        &wgpu::util::BufferInitDescriptor {
+            label: None,
+            contents: bytemuck::cast_slice(v),
+            usage: wgpu::BufferUsages::STORAGE,
+        },
+    )
+}
+
 #[test]
 fn advection_frames_gpu_match_cpu() {
     let (a, synth, _) = setup(32);
@@ -119,15 +146,7 @@ fn advection_frames_gpu_match_cpu() {
     let mut adv = Advection::new(ctx(), synth.clone(), &params, opts).unwrap();
     let plan: SynthPlan = adv.plan().clone();
     let jac = plan.jacobians();
-    let mut cpu = vec![[0i32; 2]; plan.coord_buffer_len() as usize];
-    run_cpu_frame(
-        &a,
-        &plan.advect_first_schedule(&a, &opts),
-        &mut cpu,
-        &jac,
-        &[],
-        &[],
-    );
+    let mut cpu = cpu_frame0(&a, &plan, &opts, plan.coord_buffer_len());
     assert!(adv.read_coords(ctx()).unwrap() == cpu, "frame 0 differs");
     let flows = [
         Flow::Vortex {
@@ -218,15 +237,7 @@ fn advection_frames_gpu_match_cpu() {
     // frames do; GPU = CPU on it and on a frame after it.
     let opts = AdvectOptions::keep_look();
     let mut adv = Advection::new(ctx(), synth.clone(), &params, opts).unwrap();
-    let mut cpu = vec![[0i32; 2]; adv.plan().coord_buffer_len() as usize];
-    run_cpu_frame(
-        &a,
-        &adv.plan().advect_first_schedule(&a, &opts),
-        &mut cpu,
-        &jac,
-        &[],
-        &[],
-    );
+    let mut cpu = cpu_frame0(&a, adv.plan(), &opts, adv.plan().coord_buffer_len());
     assert!(
         adv.read_coords(ctx()).unwrap() == cpu,
         "keep_look: frame 0 differs"
@@ -260,14 +271,7 @@ fn advection_frames_gpu_match_cpu() {
         );
     }
     a1.step(ctx(), &host, 2.0).unwrap();
-    let buffer = wgpu::util::DeviceExt::create_buffer_init(
-        &ctx().device,
-        &wgpu::util::BufferInitDescriptor {
-            label: None,
-            contents: bytemuck::cast_slice(&gpu),
-            usage: wgpu::BufferUsages::STORAGE,
-        },
-    );
+    let buffer = velocity_buffer(&gpu);
     let mut encoder = ctx().device.create_command_encoder(&Default::default());
     a2.encode_step(ctx(), &mut encoder, &buffer, 2.0).unwrap();
     ctx().queue.submit([encoder.finish()]);
@@ -1592,15 +1596,7 @@ fn fading_frames_match_cpu_and_fade_pops() {
     let mut adv = Advection::new(ctx(), synth.clone(), &params, opts).unwrap();
     let plan = adv.plan().clone();
     let jac = plan.jacobians();
-    let mut cpu = vec![[0i32; 2]; plan.advect_buffer_len(true) as usize];
-    run_cpu_frame(
-        &a,
-        &plan.advect_first_schedule(&a, &opts),
-        &mut cpu,
-        &jac,
-        &[],
-        &[],
-    );
+    let mut cpu = cpu_frame0(&a, &plan, &opts, plan.advect_buffer_len(true));
     assert!(adv.read_coords(ctx()).unwrap() == cpu, "frame 0 differs");
     let region = plan.fade_half_len() as usize / 3;
     let (mut faded, mut shown) = (0usize, 0usize);
@@ -1656,14 +1652,11 @@ fn fading_frames_match_cpu_and_fade_pops() {
     let mut adv =
         Advection::new(ctx(), synth.clone(), &params, AdvectOptions::keep_look()).unwrap();
     let plain_len = plan.coord_buffer_len() as usize;
-    let mut cpu = vec![[0i32; 2]; plan.advect_buffer_len(true) as usize];
-    run_cpu_frame(
+    let mut cpu = cpu_frame0(
         &a,
-        &plan.advect_first_schedule(&a, &AdvectOptions::keep_look()),
-        &mut cpu,
-        &jac,
-        &[],
-        &[],
+        &plan,
+        &AdvectOptions::keep_look(),
+        plan.advect_buffer_len(true),
     );
     assert_eq!(adv.read_coords(ctx()).unwrap().len(), plain_len);
     for f in 0..4u64 {
@@ -1688,27 +1681,17 @@ fn fading_frames_match_cpu_and_fade_pops() {
     // frame is kept (the enlarged buffer is filled in the next frame's encoder).
     let mut adv =
         Advection::new(ctx(), synth.clone(), &params, AdvectOptions::keep_look()).unwrap();
-    let mut cpu = vec![[0i32; 2]; plan.advect_buffer_len(true) as usize];
-    run_cpu_frame(
+    let mut cpu = cpu_frame0(
         &a,
-        &plan.advect_first_schedule(&a, &AdvectOptions::keep_look()),
-        &mut cpu,
-        &jac,
-        &[],
-        &[],
+        &plan,
+        &AdvectOptions::keep_look(),
+        plan.advect_buffer_len(true),
     );
     for f in 0..3u64 {
         let v = flow.sample(w, h, f as f32).unwrap();
         let q: Vec<[i32; 2]> = v.iter().map(|&v| quantize_velocity(v, 1.0)).collect();
         let schedule = adv.frame_schedule();
-        let buffer = wgpu::util::DeviceExt::create_buffer_init(
-            &ctx().device,
-            &wgpu::util::BufferInitDescriptor {
-                label: None,
-                contents: bytemuck::cast_slice(&v),
-                usage: wgpu::BufferUsages::STORAGE,
-            },
-        );
+        let buffer = velocity_buffer(&v);
         let mut encoder = ctx().device.create_command_encoder(&Default::default());
         adv.encode_step(ctx(), &mut encoder, &buffer, 1.0).unwrap();
         if f == 0 {
