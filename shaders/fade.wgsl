@@ -19,11 +19,6 @@
 #include "shared/exemplar_color.wgsl"
 #include "shared/fade.wgsl"
 
-// A pop: the jumps of the pixel's 3x3 neighbourhood changed its colour by more than this
-// on average (of 255; per pixel (|dR| + 2 |dG| + |dB|) / 4, the sum over the 3x3 against 9
-// times this, also where the region's edge clips the neighbourhood).
-const FADE_CHANGE: i32 = 60;
-
 // The new colour c and the ghost's g, the ghost at w / (N + 1): mean + (a (c - mean) +
 // w (g - mean)) / sqrt(a^2 + w^2) with a = N + 1 - w, in fixed point, clamped to 0..255.
 fn fade_blend(c: vec4<i32>, g: vec4<i32>, w: i32) -> vec4<i32> {
@@ -64,10 +59,12 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         if (si >= 0 && (own >= 0 || left > 0)) {
             let j = jac_at(i);
             let o = displacement(j, velocity_at(params.origin + q), k);
-            // A pop: the pixel jumped, and the jumps around it changed the look (the
-            // mean change over its 3x3 neighbourhood). Most jumps are not: seams that
-            // moved, patches remade alike. Fading every jump kept two thirds of a
-            // vortex's texture blended and doubled its energy (fade.rs).
+            // A pop: the pixel jumped, and the jumps around it changed the look: the
+            // mean change over its 3x3 neighbourhood exceeds params.fade_change (of 255;
+            // per pixel (|dR| + 2 |dG| + |dB|) / 4, the sum over the 3x3 against 9 times
+            // it, also where the region's edge clips the neighbourhood). Most jumps are
+            // not pops: seams that moved, patches remade alike. Fading every jump kept
+            // two thirds of a vortex's texture blended and doubled its energy (fade.rs).
             // Around one period of a periodic output, clipped at the region's edges
             // otherwise.
             var change = 0;
@@ -80,7 +77,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
                     change += max(coords[params.flag_base + u32(r.y * params.size.x + r.x)].x, 0);
                 }
             }
-            if (own >= 0 && change > 9 * FADE_CHANGE) {
+            if (own >= 0 && change > 9 * i32(params.fade_change)) {
                 // A jump while a ghost shows: the one shown most stays the ghost.
                 if (2 * left > i32(params.fade_frames)) {
                     ghost = fit_coord(coords[u32(si) + 1u] - o);

@@ -853,6 +853,14 @@ fn bad_velocities_and_time_steps() {
             AdvectOptions { fade: 65, ..d },
             "a fade of 65 frames: use 0 (off) to 64",
         ),
+        (
+            AdvectOptions {
+                fade: 2,
+                fade_change: 256,
+                ..d
+            },
+            "a pop test of 256",
+        ),
     ] {
         let e = adv.set_options(ctx(), o).unwrap_err().to_string();
         assert!(e.contains(needle), "{o:?}: {e}");
@@ -1108,6 +1116,16 @@ fn advect_cli() {
             1,
         ),
         (vec!["--flow", "vortex", "--fade", "-1"], "--fade", 2),
+        (
+            vec!["--flow", "vortex", "--fade", "1", "--fade-change", "300"],
+            "a pop test of 300",
+            1,
+        ),
+        (
+            vec!["--flow", "vortex", "--fade", "1", "--fade-change", "-5"],
+            "--fade-change",
+            2,
+        ),
     ] {
         let mut a = vec![
             "advect",
@@ -1566,6 +1584,57 @@ fn frames_continue_with_another_feature_weight() {
         &v,
         1.0
     ));
+}
+
+/// The fade's pop test (`AdvectOptions::fade_change`): GPU = CPU at a threshold other
+/// than the default, and a lower threshold fades more pixels over the same frames.
+#[test]
+fn fade_change_sets_the_pop_test() {
+    let (a, synth, _) = setup(32);
+    let (w, h) = (48u32, 40u32);
+    let params = SynthParams {
+        width: w,
+        height: h,
+        ..SynthParams::default()
+    };
+    let flow = Flow::Vortex {
+        cx: 0.5,
+        cy: 0.5,
+        omega: 0.06,
+    };
+    let mut faded = Vec::new();
+    for change in [20u32, 120] {
+        let opts = AdvectOptions {
+            fade: 1,
+            fade_change: change,
+            ..AdvectOptions::keep_look()
+        };
+        let mut adv = Advection::new(ctx(), synth.clone(), &params, opts).unwrap();
+        let plan = adv.plan().clone();
+        let jac = plan.jacobians();
+        let mut cpu = cpu_frame0(&a, &plan, &opts, plan.advect_buffer_len(true));
+        let region = plan.fade_half_len() as usize / 3;
+        let mut count = 0usize;
+        for f in 0..8u64 {
+            let v = flow.sample(w, h, f as f32).unwrap();
+            let q: Vec<[i32; 2]> = v.iter().map(|&v| quantize_velocity(v, 1.0)).collect();
+            let schedule = adv.frame_schedule();
+            let p = schedule.last().unwrap().params;
+            assert_eq!(p.fade_change, change);
+            run_cpu_frame(&a, &schedule, &mut cpu, &jac, &[], &q).unwrap();
+            adv.step(ctx(), &v, 1.0).unwrap();
+            assert!(
+                adv.read_coords(ctx()).unwrap() == cpu,
+                "threshold {change}, frame {} differs",
+                f + 1
+            );
+            let state = &cpu[p.fade_dst as usize..][..3 * region];
+            count += (0..region).filter(|&t| state[3 * t + 2][0] > 0).count();
+        }
+        faded.push(count);
+    }
+    eprintln!("pixel-frames fading at 20 and 120: {faded:?}");
+    assert!(faded[0] > faded[1], "{faded:?}");
 }
 
 /// Fading (`AdvectOptions::fade`): GPU = CPU (coordinates, fade state and colours) over

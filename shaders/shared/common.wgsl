@@ -68,6 +68,8 @@ struct Params {
     fade_dst: u32,
     fade_frames: u32,
     fade_mean: u32,
+    fade_change: u32,
+    reserved: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: Params;

@@ -131,6 +131,11 @@ pub struct PassParams {
     pub fade_dst: u32,
     pub fade_frames: u32,
     pub fade_mean: u32,
+    /// The fade's pop test: the mean change over a 3x3 neighbourhood, of 255
+    /// ([`crate::passes::advect::AdvectOptions::fade_change`]).
+    pub fade_change: u32,
+    /// Keeps the size a multiple of 8 bytes (the last 8 of the 256-byte stride).
+    pub reserved: u32,
 }
 
 /// Dynamic uniform offsets must be multiples of this (the WebGPU default limit).

@@ -2,7 +2,8 @@
 //! ([`crate::passes::advect::AdvectOptions::fade`]). A pixel whose coordinate jumped
 //! since the previous frame (it landed more than [`FADE_JUMP`] from where the flow carried
 //! the previous frame's coordinate) where the jumps changed the look of its 3x3
-//! neighbourhood ([`FADE_CHANGE`]: a renewed or remade patch, a pop) fades from what it
+//! neighbourhood (`fade_change`, by default [`FADE_CHANGE`]: a renewed or remade patch, a
+//! pop) fades from what it
 //! showed to its new content over `fade_frames` frames. Other jumps (a seam that moved,
 //! a patch remade alike) show at once.
 //!
@@ -24,15 +25,19 @@ use super::gather_aniso::color_at;
 /// largest column (at least 1), on either axis.
 pub const FADE_JUMP: i32 = 384;
 
-/// A pop: the jumps of a pixel's 3x3 neighbourhood changed its colour by more than this
-/// on average (of 255; per pixel `(|dR| + 2 |dG| + |dB|) / 4`, the sum over the 3x3
-/// against 9 times this, also where the region's edge clips the neighbourhood). Most jumps are not pops: seams that moved, patches remade
-/// alike. Measured (gravel, 256x256, default vortex, `keep_look`, 60 frames, 8-frame
-/// fades): fading every jump left 65% of the pixels blended and doubled the texture
-/// energy; at 38, 30% and x2.03; at 60, 3% and x1.37 (x1.14 without fading), the
-/// popping (8x8 blocks changing by 0.15 of full scale from one frame to the next) 0.22%
-/// of the blocks per frame against 1.16%.
-pub const FADE_CHANGE: i32 = 60;
+/// The default pop test ([`crate::passes::advect::AdvectOptions::fade_change`],
+/// `PassParams::fade_change`): the jumps of a pixel's 3x3 neighbourhood changed its
+/// colour by more than this on average (of 255; per pixel `(|dR| + 2 |dG| + |dB|) / 4`,
+/// the sum over the 3x3 against 9 times this, also where the region's edge clips the
+/// neighbourhood). Most jumps are not pops: seams that moved, patches remade alike.
+/// Measured (gravel, 256x256, default vortex, `keep_look`, 60 frames, 8-frame fades):
+/// fading every jump left 65% of the pixels blended and doubled the texture energy; at
+/// 38, 30% and x2.03; at 60, 3% and x1.37 (x1.14 without fading), the popping (8x8
+/// blocks changing by 0.15 of full scale from one frame to the next) 0.22% of the blocks
+/// per frame against 1.16%. Over 300 frames with 1-frame fades (fifty-first session):
+/// 45 x1.27 and 0.02%, 50 x1.23 and 0.10%, 55 x1.20 and 0.34%, 60 x1.17 and 0.60%
+/// (none: x1.13, 1.58%).
+pub const FADE_CHANGE: u32 = 60;
 
 /// Entries of fade state per pixel of the finest level's region.
 pub const STATE_ENTRIES: u32 = 3;
@@ -179,7 +184,7 @@ impl<'a> Frame<'a> {
             .filter(|r| r[0] >= 0 && r[1] >= 0 && r[0] < p.size[0] && r[1] < p.size[1])
             .map(|r| flag(r).max(0))
             .sum();
-        if own >= 0 && change > 9 * FADE_CHANGE {
+        if own >= 0 && change > 9 * p.fade_change as i32 {
             // A jump while a ghost shows: the one shown most stays the ghost.
             if 2 * left > p.fade_frames as i32 {
                 (self.carried(q, si, 1), left)

@@ -681,6 +681,8 @@ impl SynthPlan {
             fade_dst: 0,
             fade_frames: 0,
             fade_mean: 0,
+            fade_change: 0,
+            reserved: 0,
         }
     }
 }
@@ -975,7 +977,7 @@ impl SynthPlan {
         self.coord_buffer_len() + if fade { 2 * self.fade_half_len() } else { 0 }
     }
 
-    /// An advection frame's fade dispatches in place of its gather `g` (`frames` > 0):
+    /// An advection frame's fade dispatches in place of its gather `g` (`options.fade` > 0):
     /// over the finest level's region with the frame's drift and dither, the jumps'
     /// changes into the flag region, then the fade, reading the state half `frame % 2`
     /// (written by the previous frame; frame 0's synthesis writes half 0), writing the
@@ -984,7 +986,7 @@ impl SynthPlan {
         &self,
         analysis: &Analysis,
         g: &Dispatch,
-        frames: u32,
+        options: &super::advect::AdvectOptions,
         frame: u64,
         first: bool,
     ) -> Vec<Dispatch> {
@@ -1004,8 +1006,9 @@ impl SynthPlan {
                 flag_base: self.flag_base(),
                 fade_src: src,
                 fade_dst: dst,
-                fade_frames: frames,
+                fade_frames: options.fade,
                 fade_mean: super::fade::mean_color(&analysis.colors),
+                fade_change: options.fade_change,
                 ..g.params
             },
         };
@@ -1220,7 +1223,7 @@ impl SynthPlan {
                 ..*g
             };
             if options.fade > 0 {
-                out.extend(self.fade_dispatches(analysis, &g, options.fade, frame, false));
+                out.extend(self.fade_dispatches(analysis, &g, options, frame, false));
             } else {
                 out.push(g);
             }
@@ -1276,7 +1279,7 @@ impl SynthPlan {
         if let Some(g) = s.last_mut() {
             g.params.nearest = options.nearest as u32;
             if options.fade > 0 {
-                *g = self.fade_dispatches(analysis, g, options.fade, 0, true)[0];
+                *g = self.fade_dispatches(analysis, g, options, 0, true)[0];
             }
         }
         s
