@@ -1,18 +1,23 @@
 // The last pass of an advection frame with fading (mirror: src/passes/fade.rs): the
-// finest level's colours, where a pixel whose coordinate jumped since the previous frame
-// (it landed more than FADE_JUMP from where the flow carried the previous frame's) in a
-// neighbourhood whose look the jumps changed (a renewed or remade patch: a pop) fades
-// from what it showed to its new content over params.fade_frames frames. Per pixel of
-// the finest level's region the fade state holds the coordinate (A), the ghost's
-// coordinate (B) and the frames the ghost has left (w); this frame reads the state at
-// params.fade_src (none: 0) k pixels upstream, moves B (or A, for a new ghost) with the
-// flow as advect.wgsl moves coordinates, and writes the new state at params.fade_dst (two
-// halves, swapped every frame, so no pixel reads what another writes). fade_jump.wgsl
-// has left each pixel's jump in the flag region. Ghosts are coordinates, not colours:
-// they move with the texture without being resampled, so nothing blurs. The two colours
-// are blended so that the contrast stays (variance-preserving, around the exemplar's
-// mean colour): a linear blend of two unrelated patches is a flat, washed-out patch
-// halfway through.
+// finest level's colours, where a pixel's coordinate jumped since the previous frame (it
+// landed more than FADE_JUMP from where the flow carried the previous frame's) and the
+// jump changed its colour by more than params.fade_change (a pop: a renewed or remade
+// patch) the pixel fades from what it showed to its new content over params.fade_frames
+// frames. Per pixel of the finest level's region the fade state holds the coordinate (A),
+// the ghost's coordinate (B) and the frames the ghost has left (w); this frame reads the
+// state at params.fade_src (none: 0) k pixels upstream, moves A (and B) with the flow as
+// advect.wgsl moves coordinates, and writes the new state at params.fade_dst (two halves,
+// swapped every frame, so no pixel reads what another writes). With one-frame fades the
+// ghost shows on the frame of the pop only, so the state is A alone (B and w are neither
+// read nor written). Ghosts are coordinates, not colours: they move with the texture
+// without being resampled, so nothing blurs. The two colours are blended so that the
+// contrast stays (variance-preserving, around the exemplar's mean colour): a linear blend
+// of two unrelated patches is a flat, washed-out patch halfway through.
+//
+// One pass, and a test of the pixel's own change: on lavapipe a pass costs about its
+// memory accesses whether or not a pixel takes the branch that holds them, and a test over
+// the 3x3 neighbourhood needed a pass of its own and nine reads per pixel (29 ms of a
+// 512x512 frame against 13; fade.rs).
 #include "shared/common.wgsl"
 #include "shared/aniso.wgsl"
 #include "shared/advect.wgsl"
@@ -41,68 +46,59 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let t = u32(q.y * params.size.x + q.x);
     let i = params.coord_base + t;
     let s = coords[i];
+    var v = color_at(s);
     var ghost = s;
     var w = 0;
-    // Mixed with `opaque`: these uniforms change every frame (see common.wgsl).
+    var g = v;
+    // Compiled out of one-frame fades: the ghost's reads and writes (as a uniform branch
+    // the CPU driver ran them anyway).
+    let longer = LONG_FADE;
+    // Mixed with `opaque`: it changes every frame (see common.wgsl).
     if ((params.fade_src | u32(opaque)) != 0u) {
         let k = whole_shift();
         let si = upstream(q, k);
-        // fade_jump.wgsl left each pixel's change in the flag region (-1: no jump).
-        let own = coords[params.flag_base + t].x;
-        // At most N: a fade saved under a longer N (set_options between frames) goes on
-        // with the new one.
-        var left = 0;
         if (si >= 0) {
-            left = clamp(coords[u32(si) + 2u].x - 1, 0, i32(params.fade_frames));
-        }
-        // Most pixels neither jumped nor fade: nothing more to read.
-        if (si >= 0 && (own >= 0 || left > 0)) {
             let j = jac_at(i);
             let o = displacement(j, velocity_at(params.origin + q), k);
-            // A pop: the pixel jumped, and the jumps around it changed the look: the
-            // mean change over its 3x3 neighbourhood exceeds params.fade_change (of 255;
-            // per pixel (|dR| + 2 |dG| + |dB|) / 4, the sum over the 3x3 against 9 times
-            // it, also where the region's edge clips the neighbourhood). Most jumps are
-            // not pops: seams that moved, patches remade alike. Fading every jump kept
-            // two thirds of a vortex's texture blended and doubled its energy (fade.rs).
-            // Around one period of a periodic output, clipped at the region's edges
-            // otherwise.
-            var change = 0;
-            for (var n = 0; n < 9; n++) {
-                var r = q + vec2<i32>(n % 3 - 1, n / 3 - 1);
-                if (PERIODIC) {
-                    r = vec2<i32>(wrap(r.x, params.size.x), wrap(r.y, params.size.y));
-                }
-                if (all(r >= vec2<i32>(0)) && all(r < (params.size | vec2<i32>(opaque)))) {
-                    change += max(coords[params.flag_base + u32(r.y * params.size.x + r.x)].x, 0);
-                }
+            let a = fit_coord(coords[u32(si)] - o);
+            // At most N: a fade saved under a longer N (set_options between frames) goes
+            // on with the new one.
+            var left = 0;
+            if (longer) {
+                left = clamp(coords[u32(si) + 2u].x - 1, 0, i32(params.fade_frames));
             }
-            if (own >= 0 && change > 9 * i32(params.fade_change)) {
-                // A jump while a ghost shows: the one shown most stays the ghost.
-                if (2 * left > i32(params.fade_frames)) {
-                    ghost = fit_coord(coords[u32(si) + 1u] - o);
-                    w = left;
-                } else {
-                    ghost = fit_coord(coords[u32(si)] - o);
-                    w = i32(params.fade_frames);
-                }
+            // A pop: the pixel jumped, and the jump changed its colour. Most jumps are
+            // not pops: seams that moved, patches remade alike.
+            var pop = false;
+            var ca = v;
+            if (jumped(s, a, j)) {
+                ca = color_at(a);
+                pop = grey_change(v, ca) > i32(params.fade_change);
+            }
+            // A pop while a ghost shows: the one shown most stays the ghost.
+            if (pop && 2 * left <= i32(params.fade_frames)) {
+                ghost = a;
+                w = i32(params.fade_frames);
+                g = ca;
             } else if (left > 0) {
                 ghost = fit_coord(coords[u32(si) + 1u] - o);
                 w = left;
+                g = color_at(ghost);
             }
         }
     }
     let d = params.fade_dst + 3u * t;
     coords[d] = s;
-    coords[d + 1u] = ghost;
-    coords[d + 2u] = vec2<i32>(w, 0);
+    if (longer) {
+        coords[d + 1u] = ghost;
+        coords[d + 2u] = vec2<i32>(w, 0);
+    }
     let p = q - params.window_offset;
     if (any(p < vec2<i32>(0)) || any(p >= (params.window_size | vec2<i32>(opaque)))) {
         return;
     }
-    var v = color_at(s);
     if (w > 0) {
-        v = fade_blend(v, color_at(ghost), w);
+        v = fade_blend(v, g, w);
     }
     textureStore(out_color, p, vec4<f32>(v) / 255.0);
 }

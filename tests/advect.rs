@@ -1586,6 +1586,71 @@ fn frames_continue_with_another_feature_weight() {
     ));
 }
 
+/// One-frame fades (`fade: 1`) keep the coordinates alone as fade state: GPU = CPU
+/// (coordinates and colours) over frames of a fast vortex, some pixels show a blend (not
+/// their texel), and longer fades after them start every pixel unfaded.
+#[test]
+fn one_frame_fades_match_cpu_and_longer_ones_start_unfaded() {
+    let (a, synth, _) = setup(32);
+    let (w, h) = (48u32, 40u32);
+    let params = SynthParams {
+        width: w,
+        height: h,
+        ..SynthParams::default()
+    };
+    let flow = Flow::Vortex {
+        cx: 0.5,
+        cy: 0.5,
+        omega: 0.06,
+    };
+    let opts = AdvectOptions {
+        fade: 1,
+        fade_change: 40,
+        ..AdvectOptions::keep_look()
+    };
+    let mut adv = Advection::new(ctx(), synth.clone(), &params, opts).unwrap();
+    let plan = adv.plan().clone();
+    let jac = plan.jacobians();
+    let mut cpu = cpu_frame0(&a, &plan, &opts, plan.advect_buffer_len(true));
+    let region = plan.fade_half_len() as usize / 3;
+    let mut blended = 0usize;
+    for f in 0..10u64 {
+        if f == 8 {
+            adv.set_options(ctx(), AdvectOptions { fade: 4, ..opts })
+                .unwrap();
+        }
+        let v = flow.sample(w, h, f as f32).unwrap();
+        let q: Vec<[i32; 2]> = v.iter().map(|&v| quantize_velocity(v, 1.0)).collect();
+        let schedule = adv.frame_schedule();
+        let p = schedule.last().unwrap().params;
+        assert_eq!(p.fade_src == 0, f == 8, "frame {}: fade_src {}", f + 1, p.fade_src);
+        adv.step(ctx(), &v, 1.0).unwrap();
+        let out = run_cpu_frame(&a, &schedule, &mut cpu, &jac, &[], &q).unwrap();
+        assert!(
+            adv.read_coords(ctx()).unwrap() == cpu,
+            "frame {} differs",
+            f + 1
+        );
+        let rgba: Vec<u8> = out.colors.iter().flatten().copied().collect();
+        assert_eq!(adv.read_rgba8(ctx()).unwrap(), rgba, "frame {}", f + 1);
+        if f < 8 {
+            let state = &cpu[p.fade_dst as usize..][..3 * region];
+            for t in 0..region {
+                let (x, y) = (t as i32 % p.size[0], t as i32 / p.size[0]);
+                let (wx, wy) = (x - p.window_offset[0], y - p.window_offset[1]);
+                if wx >= 0 && wy >= 0 && wx < w as i32 && wy < h as i32 {
+                    let o = (wy * w as i32 + wx) as usize;
+                    let texel =
+                        texsyn::passes::gather_aniso::color_at(&p, &a.colors, state[3 * t]);
+                    blended += (out.colors[o] != texel) as usize;
+                }
+            }
+        }
+    }
+    eprintln!("one-frame fades: {blended} pixel-frames blended");
+    assert!(blended > 0, "no pixel blended");
+}
+
 /// The fade's pop test (`AdvectOptions::fade_change`): GPU = CPU at a threshold other
 /// than the default, and a lower threshold fades more pixels over the same frames.
 #[test]
@@ -1605,7 +1670,7 @@ fn fade_change_sets_the_pop_test() {
     let mut faded = Vec::new();
     for change in [20u32, 120] {
         let opts = AdvectOptions {
-            fade: 1,
+            fade: 2,
             fade_change: change,
             ..AdvectOptions::keep_look()
         };

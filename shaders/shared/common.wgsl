@@ -116,6 +116,9 @@ override COHERENT_SKIP: bool = false;
 // params.drift != 0: an advection frame's upsampling follows the drift's phase
 // (upsample_aniso.wgsl); as a uniform branch it slowed every synthesis along a field.
 override DRIFT: bool = false;
+// params.fade_frames > 1 (fade.wgsl): one-frame fades keep no ghost, so their pass
+// neither reads nor writes one.
+override LONG_FADE: bool = false;
 // Synthesized exemplar coordinates of every level's region, concatenated.
 @group(0) @binding(1) var<storage, read_write> coords: array<vec2<i32>>;
 // Quantized transformed exemplar Et_l: 8 x i16 per pixel, all levels.

@@ -1,5 +1,5 @@
-// What the fade passes share (mirror: src/passes/fade.rs): when a coordinate jumped,
-// where a pixel's fade state comes from, and how much a jump changed its look. Included
+// What the fade pass uses (mirror: src/passes/fade.rs): when a coordinate jumped, where a
+// pixel's fade state comes from, and how much a jump changed its look. Included
 // after common.wgsl, aniso.wgsl, advect.wgsl and exemplar_color.wgsl.
 
 // A jump: more than 1.5 exemplar pixels (1/256 units) per unit of the Jacobian's
@@ -31,21 +31,8 @@ fn upstream(q: vec2<i32>, k: vec2<i32>) -> i32 {
     return i32(params.fade_src + 3u * u32(src.y * params.size.x + src.x));
 }
 
-// How much region pixel q's grey level changed by a jump of its coordinate (0..255), or
-// -1 where it did not jump or has no history.
-fn jump_change(q: vec2<i32>, k: vec2<i32>) -> i32 {
-    let si = upstream(q, k);
-    if (si < 0) {
-        return -1;
-    }
-    let i = params.coord_base + u32(q.y * params.size.x + q.x);
-    let j = jac_at(i);
-    let o = displacement(j, velocity_at(params.origin + q), k);
-    let a = fit_coord(coords[u32(si)] - o);
-    let s = coords[i];
-    if (!jumped(s, a, j)) {
-        return -1;
-    }
-    let d = abs(color_at(s) - color_at(a));
+// How much a pixel's colour changed from a to c: (|dR| + 2 |dG| + |dB|) / 4, 0..255.
+fn grey_change(c: vec4<i32>, a: vec4<i32>) -> i32 {
+    let d = abs(c - a);
     return (d.x + 2 * d.y + d.z) >> 2u;
 }

@@ -366,7 +366,8 @@ impl Advection {
     /// on an advection made without it enlarges its coordinate buffer (refused where the
     /// device cannot bind the larger one; the contents are copied in the next frame's
     /// encoder, so this may come between [`Self::encode_step`] and the submission of its
-    /// encoder); the next frame then starts every pixel unfaded.
+    /// encoder); the next frame then starts every pixel unfaded, as it does when fades
+    /// of one frame become longer (one-frame fades keep no ghosts).
     pub fn set_options(&mut self, ctx: &GpuContext, options: AdvectOptions) -> Result<()> {
         self.synthesizer.check_context(ctx)?;
         options.check_for_pyramid(self.plan.levels.len())?;
@@ -394,6 +395,11 @@ impl Advection {
             // enlarged twice before it is copied from the first.
             let old = std::mem::replace(&mut self.coords, grown);
             self.grow_from.get_or_insert(old);
+        }
+        // One-frame fades keep the coordinates alone (`passes::fade`): a longer fade
+        // after them starts every pixel unfaded.
+        if self.options.fade <= 1 && options.fade > 1 {
+            self.fade_state = false;
         }
         self.options = options;
         Ok(())
@@ -471,7 +477,6 @@ impl Advection {
                 .advect_schedule(self.synthesizer.analysis(), &self.options, self.frame);
         if !self.fade_state {
             // No fade state yet (fading just turned on): every pixel starts unfaded.
-            schedule.retain(|d| d.kind != PassKind::FadeJump);
             for d in schedule.iter_mut().filter(|d| d.kind == PassKind::Fade) {
                 d.params.fade_src = 0;
             }

@@ -270,7 +270,7 @@ type JacobianKey = (
 /// The switches compiled into a pass pipeline as WGSL overrides (`shaders/shared/
 /// common.wgsl`): a pipeline per combination in use, so that CPU drivers do not run the
 /// branches a dispatch never takes. Bits 0-10: the flags of [`Self::FLAGS`]; bits 11-13:
-/// the similarity-set size k - 1.
+/// the similarity-set size k - 1; bit 14 DRIFT, bit 15 LONG_FADE.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) struct Variant(u16);
 
@@ -302,6 +302,8 @@ impl Variant {
     /// synthesis along a field about a tenth of its time on lavapipe (measured: bench
     /// 512x512, `rotate:30` 104-108 ms against 92-93 ms, swirl 126-132 against 114-115).
     const DRIFT: u16 = 1 << 14;
+    /// `params.fade_frames > 1`, which only the fade pass branches on.
+    const LONG_FADE: u16 = 1 << 15;
     const K_MASK: u16 = 0b111;
 
     /// The switches of a dispatch, from the parameters the CPU mirror reads
@@ -321,7 +323,12 @@ impl Variant {
             p.coherent_skip != 0,
         ];
         let k = (p.k.clamp(1, crate::analysis::MAX_K as i32) - 1) as u16;
-        let drift = if p.drift != 0 { Self::DRIFT } else { 0 };
+        let drift = if p.drift != 0 { Self::DRIFT } else { 0 }
+            | if p.fade_frames > 1 {
+                Self::LONG_FADE
+            } else {
+                0
+            };
         Self(
             flags
                 .iter()
@@ -352,17 +359,19 @@ impl Variant {
     /// The switches only the correction passes read are reset for the others, so they
     /// share one pipeline across levels.
     fn for_kind(self, kind: PassKind) -> Self {
-        // DRIFT only matters to the anisometric upsampling.
+        // DRIFT only matters to the anisometric upsampling, LONG_FADE to the fade.
         let v = if kind == PassKind::UpsampleAniso {
+            self.0 & !Self::LONG_FADE
+        } else if kind == PassKind::Fade {
             self.0
         } else {
-            self.0 & !Self::DRIFT
+            self.0 & !(Self::DRIFT | Self::LONG_FADE)
         };
         match kind {
             PassKind::Correct | PassKind::CorrectAniso => Self(v & !Self::GATHER_ONLY),
             PassKind::Gather | PassKind::GatherAniso => Self(v & !Self::CORRECTION_ONLY),
             // The resampling rounds to whole texels where the gather reads the nearest.
-            PassKind::Resample | PassKind::Fade | PassKind::FadeJump => {
+            PassKind::Resample | PassKind::Fade => {
                 Self(v & !(Self::CORRECTION_ONLY | Self::SEAM_BLEND))
             }
             _ => Self(v & !(Self::CORRECTION_ONLY | Self::GATHER_ONLY)),
@@ -381,6 +390,10 @@ impl Variant {
             f64::from(((self.0 >> Self::K_SHIFT) & Self::K_MASK) + 1),
         ));
         c.push(("DRIFT", f64::from(u16::from(self.0 & Self::DRIFT != 0))));
+        c.push((
+            "LONG_FADE",
+            f64::from(u16::from(self.0 & Self::LONG_FADE != 0)),
+        ));
         c
     }
 }
@@ -468,7 +481,6 @@ pub(crate) struct PassPipelines {
     distortion: LazyPipeline,
     resample: LazyPipeline,
     fade: LazyPipeline,
-    fade_jump: LazyPipeline,
 }
 
 impl std::fmt::Debug for PassPipelines {
@@ -543,7 +555,6 @@ impl PassPipelines {
             distortion: LazyPipeline::new(&shaders::DISTORTION),
             resample: LazyPipeline::new(&shaders::RESAMPLE),
             fade: LazyPipeline::new(&shaders::FADE),
-            fade_jump: LazyPipeline::new(&shaders::FADE_JUMP),
         }
     }
 
@@ -563,7 +574,6 @@ impl PassPipelines {
             PassKind::Distortion => &self.distortion,
             PassKind::Resample => &self.resample,
             PassKind::Fade => &self.fade,
-            PassKind::FadeJump => &self.fade_jump,
         };
         lazy.get(ctx, &self.pipeline_layout, variant.for_kind(kind))
     }

@@ -1,21 +1,28 @@
 //! Mirror of `shaders/fade.wgsl`: the last pass of an advection frame with fading
 //! ([`crate::passes::advect::AdvectOptions::fade`]). A pixel whose coordinate jumped
 //! since the previous frame (it landed more than [`FADE_JUMP`] from where the flow carried
-//! the previous frame's coordinate) where the jumps changed the look of its 3x3
-//! neighbourhood (`fade_change`, by default [`FADE_CHANGE`]: a renewed or remade patch, a
-//! pop) fades from what it
-//! showed to its new content over `fade_frames` frames. Other jumps (a seam that moved,
-//! a patch remade alike) show at once.
+//! the previous frame's coordinate) where the jump changed its colour by more than
+//! `fade_change` (by default [`FADE_CHANGE`]: a renewed or remade patch, a pop) fades
+//! from what it showed to its new content over `fade_frames` frames. Other jumps (a seam
+//! that moved, a patch remade alike) show at once.
 //!
 //! The fade state, per pixel of the finest level's region, is three coordinate entries:
 //! the pixel's coordinate `A`, its ghost's `B`, and the frames the ghost has left `w`
 //! (`[w, 0]`). A frame reads the state `k` pixels upstream at `fade_src` (0: none, every
 //! pixel starts unfaded), moves `A` and `B` with the flow exactly as the advect pass moves
-//! coordinates, and writes the new state at `fade_dst`. Ghosts are coordinates, not
-//! colours, so they move with the texture without being resampled (nothing blurs). The
-//! colours are blended so that the contrast stays: `mean + (a (c - mean) + w (g - mean))
-//! / sqrt(a^2 + w^2)` with `a = N + 1 - w`, around the exemplar's mean colour (a linear
-//! blend of two unrelated patches is flat halfway through).
+//! coordinates, and writes the new state at `fade_dst`. With one-frame fades the ghost
+//! shows on the frame of the pop only, so only `A` is read and written. Ghosts are
+//! coordinates, not colours, so they move with the texture without being resampled
+//! (nothing blurs). The colours are blended so that the contrast stays: `mean + (a (c -
+//! mean) + w (g - mean)) / sqrt(a^2 + w^2)` with `a = N + 1 - w`, around the exemplar's
+//! mean colour (a linear blend of two unrelated patches is flat halfway through).
+//!
+//! The test looks at the pixel alone, in one pass. Until the fifty-first session it was
+//! the mean change of the 3x3 neighbourhood, in a pass of its own before this one: a
+//! slightly better trade (gravel, 1-frame fades: 0.60% of the 8x8 blocks popping per
+//! frame at x1.17 of frame 0's texture energy, against 0.61% at x1.20 now), but on
+//! lavapipe, where a pass costs about its memory accesses whether or not a pixel takes
+//! the branch that holds them, the two passes took 29 ms of a 512x512 frame, this one 13.
 
 use super::advect::{offset, velocity_at, whole_shift};
 use super::common::{fit_coord, wrap, PassParams};
@@ -26,18 +33,13 @@ use super::gather_aniso::color_at;
 pub const FADE_JUMP: i32 = 384;
 
 /// The default pop test ([`crate::passes::advect::AdvectOptions::fade_change`],
-/// `PassParams::fade_change`): the jumps of a pixel's 3x3 neighbourhood changed its
-/// colour by more than this on average (of 255; per pixel `(|dR| + 2 |dG| + |dB|) / 4`,
-/// the sum over the 3x3 against 9 times this, also where the region's edge clips the
-/// neighbourhood). Most jumps are not pops: seams that moved, patches remade alike.
-/// Measured (gravel, 256x256, default vortex, `keep_look`, 60 frames, 8-frame fades):
-/// fading every jump left 65% of the pixels blended and doubled the texture energy; at
-/// 38, 30% and x2.03; at 60, 3% and x1.37 (x1.14 without fading), the popping (8x8
-/// blocks changing by 0.15 of full scale from one frame to the next) 0.22% of the blocks
-/// per frame against 1.16%. Over 300 frames with 1-frame fades (fifty-first session):
-/// 45 x1.27 and 0.02%, 50 x1.23 and 0.10%, 55 x1.20 and 0.34%, 60 x1.17 and 0.60%
-/// (none: x1.13, 1.58%).
-pub const FADE_CHANGE: u32 = 60;
+/// `PassParams::fade_change`): the jump changed the pixel's colour by more than this (of
+/// 255; `(|dR| + 2 |dG| + |dB|) / 4`). Most jumps are not pops: seams that moved, patches
+/// remade alike. Measured (fifty-first session; gravel, 256x256, 300 frames of the
+/// default vortex, `keep_look`, 1-frame fades; texture energy at frame 300 over frame 0's
+/// and the 8x8 blocks changing by 0.15 of full scale per frame): 90 x1.22 and 0.34%, 100
+/// x1.20 and 0.61%, 110 x1.17 and 0.96% (none: x1.13 and 1.58%).
+pub const FADE_CHANGE: u32 = 100;
 
 /// Entries of fade state per pixel of the finest level's region.
 pub const STATE_ENTRIES: u32 = 3;
@@ -135,68 +137,47 @@ impl<'a> Frame<'a> {
         fit_coord([c[0] - o[0], c[1] - o[1]], p)
     }
 
-    /// How much region pixel `q`'s colour changed by a jump of its coordinate,
-    /// `(|dR| + 2 |dG| + |dB|) / 4` (0..255), or -1 where it did not jump or has no history
-    /// (`jump_change`).
-    pub(super) fn jump_change(&self, q: [i32; 2]) -> i32 {
-        let Some(si) = self.upstream(q) else {
-            return -1;
-        };
-        let i = self.index(q);
-        let (s, a) = (self.coords[i], self.carried(q, si, 0));
-        if !jumped(self.p, s, a, self.jac[i]) {
-            return -1;
-        }
-        let (cs, ca) = (
-            color_at(self.p, self.colors, s),
-            color_at(self.p, self.colors, a),
-        );
-        let d = |c: usize| (cs[c] as i32 - ca[c] as i32).abs();
-        (d(0) + 2 * d(1) + d(2)) >> 2
-    }
-
     /// Region pixel `q`'s new fade state: its ghost and the frames the ghost has left.
     fn state(&self, q: [i32; 2]) -> ([i32; 2], i32) {
         let p = self.p;
-        let s = self.coords[self.index(q)];
+        let i = self.index(q);
+        let s = self.coords[i];
         if p.fade_src == 0 {
             return (s, 0);
         }
         let Some(si) = self.upstream(q) else {
             return (s, 0);
         };
-        // `fade_jump` left each pixel's change in the flag region (-1: no jump).
-        let flag =
-            |r: [i32; 2]| self.coords[p.flag_base as usize + (r[1] * p.size[0] + r[0]) as usize][0];
-        let own = flag(q);
-        // At most N: a fade saved under a longer N goes on with the new one.
-        let left = (self.coords[si + 2][0] - 1).clamp(0, p.fade_frames as i32);
-        // Around one period of a periodic output, clipped at the region's edges otherwise.
-        let change: i32 = (0..9)
-            .map(|n| {
-                let r = [q[0] + n % 3 - 1, q[1] + n / 3 - 1];
-                if p.periodic != 0 {
-                    [wrap(r[0], p.size[0]), wrap(r[1], p.size[1])]
-                } else {
-                    r
-                }
-            })
-            .filter(|r| r[0] >= 0 && r[1] >= 0 && r[0] < p.size[0] && r[1] < p.size[1])
-            .map(|r| flag(r).max(0))
-            .sum();
-        if own >= 0 && change > 9 * p.fade_change as i32 {
-            // A jump while a ghost shows: the one shown most stays the ghost.
-            if 2 * left > p.fade_frames as i32 {
-                (self.carried(q, si, 1), left)
-            } else {
-                (self.carried(q, si, 0), p.fade_frames as i32)
-            }
+        let a = self.carried(q, si, 0);
+        // At most N: a fade saved under a longer N goes on with the new one. One-frame
+        // fades keep no ghost from frame to frame.
+        let left = if p.fade_frames > 1 {
+            (self.coords[si + 2][0] - 1).clamp(0, p.fade_frames as i32)
+        } else {
+            0
+        };
+        // A pop: the pixel jumped, and the jump changed its colour.
+        let pop = jumped(p, s, a, self.jac[i])
+            && grey_change(
+                color_at(p, self.colors, s),
+                color_at(p, self.colors, a),
+            ) > p.fade_change as i32;
+        // A pop while a ghost shows: the one shown most stays the ghost.
+        if pop && 2 * left <= p.fade_frames as i32 {
+            (a, p.fade_frames as i32)
         } else if left > 0 {
             (self.carried(q, si, 1), left)
         } else {
             (s, 0)
         }
     }
+}
+
+/// How much a colour changed from `a` to `c`, `(|dR| + 2 |dG| + |dB|) / 4` (0..255;
+/// `grey_change`).
+pub fn grey_change(c: [u8; 4], a: [u8; 4]) -> i32 {
+    let d = |k: usize| (c[k] as i32 - a[k] as i32).abs();
+    (d(0) + 2 * d(1) + d(2)) >> 2
 }
 
 /// Runs the pass over the finest level's region (`p.size` at `p.coord_base`): writes
@@ -230,7 +211,15 @@ pub fn run(
             out_colors[o] = v;
         }
     }
-    coords[p.fade_dst as usize..][..state.len()].copy_from_slice(&state);
+    let dst = &mut coords[p.fade_dst as usize..][..state.len()];
+    if p.fade_frames > 1 {
+        dst.copy_from_slice(&state);
+    } else {
+        // One-frame fades: the coordinates alone (the ghost's entries are not written).
+        for (d, s) in dst.chunks_exact_mut(3).zip(state.chunks_exact(3)) {
+            d[0] = s[0];
+        }
+    }
     (out_coords, out_colors)
 }
 

@@ -7,7 +7,6 @@ pub mod common;
 pub mod correct;
 pub mod correct_aniso;
 pub mod fade;
-pub mod fade_jump;
 pub mod fill;
 pub mod gather;
 pub mod gather_aniso;
@@ -143,10 +142,6 @@ pub fn run_cpu_frame(
             }
             PassKind::Resample => {
                 resample::run(&d.params, coords, jac);
-                None
-            }
-            PassKind::FadeJump => {
-                fade_jump::run(&d.params, coords, jac, velocity, &analysis.colors);
                 None
             }
             PassKind::Fade => Some(fade::run(

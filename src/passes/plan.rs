@@ -800,9 +800,6 @@ pub enum PassKind {
     /// Advection frames with fading: the finest level's colours, pixels whose
     /// coordinate jumped fading in over a few frames (`fade.rs`); in place of the gather.
     Fade,
-    /// Advection frames with fading, before [`PassKind::Fade`]: how much each pixel's
-    /// look changed by a jump of its coordinate, into the flag region (`fade_jump.rs`).
-    FadeJump,
     /// A tileable output made on a torus ([`Torus`]): the finest level's coordinates
     /// resampled onto the output's grid.
     Resample,
@@ -841,8 +838,7 @@ impl Dispatch {
             PassKind::Advect
             | PassKind::Distortion
             | PassKind::Resample
-            | PassKind::Fade
-            | PassKind::FadeJump => [p.size[0] as u32, p.size[1] as u32],
+            | PassKind::Fade => [p.size[0] as u32, p.size[1] as u32],
             PassKind::Drift => [1, 1],
         }
     }
@@ -977,19 +973,19 @@ impl SynthPlan {
         self.coord_buffer_len() + if fade { 2 * self.fade_half_len() } else { 0 }
     }
 
-    /// An advection frame's fade dispatches in place of its gather `g` (`options.fade` > 0):
-    /// over the finest level's region with the frame's drift and dither, the jumps'
-    /// changes into the flag region, then the fade, reading the state half `frame % 2`
-    /// (written by the previous frame; frame 0's synthesis writes half 0), writing the
-    /// other. `first` (frame 0): the fade alone, writing half 0 with every pixel unfaded.
-    fn fade_dispatches(
+    /// An advection frame's fade dispatch in place of its gather `g` (`options.fade` > 0):
+    /// over the finest level's region with the frame's drift and dither, reading the
+    /// state half `frame % 2` (written by the previous frame; frame 0's synthesis writes
+    /// half 0), writing the other. `first` (frame 0): writing half 0 with every pixel
+    /// unfaded.
+    fn fade_dispatch(
         &self,
         analysis: &Analysis,
         g: &Dispatch,
         options: &super::advect::AdvectOptions,
         frame: u64,
         first: bool,
-    ) -> Vec<Dispatch> {
+    ) -> Dispatch {
         let n = self.levels.len() - 1;
         let half = |h: u64| (self.fade_base() as u64 + h * self.fade_half_len()) as u32;
         let (src, dst) = if first {
@@ -997,7 +993,7 @@ impl SynthPlan {
         } else {
             (half(frame % 2), half((frame + 1) % 2))
         };
-        let fade = Dispatch {
+        Dispatch {
             kind: PassKind::Fade,
             level: n,
             params: PassParams {
@@ -1011,17 +1007,7 @@ impl SynthPlan {
                 fade_change: options.fade_change,
                 ..g.params
             },
-        };
-        if first {
-            return vec![fade];
         }
-        vec![
-            Dispatch {
-                kind: PassKind::FadeJump,
-                ..fade
-            },
-            fade,
-        ]
     }
 
     /// Entries of the flag region (the largest level).
@@ -1223,7 +1209,7 @@ impl SynthPlan {
                 ..*g
             };
             if options.fade > 0 {
-                out.extend(self.fade_dispatches(analysis, &g, options, frame, false));
+                out.push(self.fade_dispatch(analysis, &g, options, frame, false));
             } else {
                 out.push(g);
             }
@@ -1279,7 +1265,7 @@ impl SynthPlan {
         if let Some(g) = s.last_mut() {
             g.params.nearest = options.nearest as u32;
             if options.fade > 0 {
-                *g = self.fade_dispatches(analysis, g, options, 0, true)[0];
+                *g = self.fade_dispatch(analysis, g, options, 0, true);
             }
         }
         s
