@@ -1623,7 +1623,13 @@ fn one_frame_fades_match_cpu_and_longer_ones_start_unfaded() {
         let q: Vec<[i32; 2]> = v.iter().map(|&v| quantize_velocity(v, 1.0)).collect();
         let schedule = adv.frame_schedule();
         let p = schedule.last().unwrap().params;
-        assert_eq!(p.fade_src == 0, f == 8, "frame {}: fade_src {}", f + 1, p.fade_src);
+        assert_eq!(
+            p.fade_src == 0,
+            f == 8,
+            "frame {}: fade_src {}",
+            f + 1,
+            p.fade_src
+        );
         adv.step(ctx(), &v, 1.0).unwrap();
         let out = run_cpu_frame(&a, &schedule, &mut cpu, &jac, &[], &q).unwrap();
         assert!(
@@ -1640,8 +1646,7 @@ fn one_frame_fades_match_cpu_and_longer_ones_start_unfaded() {
                 let (wx, wy) = (x - p.window_offset[0], y - p.window_offset[1]);
                 if wx >= 0 && wy >= 0 && wx < w as i32 && wy < h as i32 {
                     let o = (wy * w as i32 + wx) as usize;
-                    let texel =
-                        texsyn::passes::gather_aniso::color_at(&p, &a.colors, state[3 * t]);
+                    let texel = texsyn::passes::gather_aniso::color_at(&p, &a.colors, state[3 * t]);
                     blended += (out.colors[o] != texel) as usize;
                 }
             }

@@ -158,10 +158,8 @@ impl<'a> Frame<'a> {
         };
         // A pop: the pixel jumped, and the jump changed its colour.
         let pop = jumped(p, s, a, self.jac[i])
-            && grey_change(
-                color_at(p, self.colors, s),
-                color_at(p, self.colors, a),
-            ) > p.fade_change as i32;
+            && grey_change(color_at(p, self.colors, s), color_at(p, self.colors, a))
+                > p.fade_change as i32;
         // A pop while a ghost shows: the one shown most stays the ghost.
         if pop && 2 * left <= p.fade_frames as i32 {
             (a, p.fade_frames as i32)

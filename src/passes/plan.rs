@@ -835,10 +835,9 @@ impl Dispatch {
                 [p.window_size[0] as u32, p.window_size[1] as u32]
             }
             PassKind::Fill => [p.fill_count.min(FILL_ROW), p.fill_count.div_ceil(FILL_ROW)],
-            PassKind::Advect
-            | PassKind::Distortion
-            | PassKind::Resample
-            | PassKind::Fade => [p.size[0] as u32, p.size[1] as u32],
+            PassKind::Advect | PassKind::Distortion | PassKind::Resample | PassKind::Fade => {
+                [p.size[0] as u32, p.size[1] as u32]
+            }
             PassKind::Drift => [1, 1],
         }
     }
