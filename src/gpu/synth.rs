@@ -323,7 +323,7 @@ impl Variant {
             p.coherent_skip != 0,
         ];
         let k = (p.k.clamp(1, crate::analysis::MAX_K as i32) - 1) as u16;
-        let drift = if p.drift != 0 { Self::DRIFT } else { 0 }
+        let high = if p.drift != 0 { Self::DRIFT } else { 0 }
             | if p.fade_frames > 1 {
                 Self::LONG_FADE
             } else {
@@ -333,7 +333,7 @@ impl Variant {
             flags
                 .iter()
                 .enumerate()
-                .fold((k << Self::K_SHIFT) | drift, |v, (i, &b)| {
+                .fold((k << Self::K_SHIFT) | high, |v, (i, &b)| {
                     v | (u16::from(b) << i)
                 }),
         )
@@ -404,7 +404,7 @@ impl Variant {
 struct LazyPipeline {
     shader: &'static ShaderSource,
     module: std::sync::OnceLock<wgpu::ShaderModule>,
-    /// The variants in use (a few of the 2^14 possible): each its own cell, so that
+    /// The variants in use (a few of the 2^16 possible): each its own cell, so that
     /// two threads build different variants at once and the same one only once.
     cells: Mutex<std::collections::HashMap<u16, Arc<std::sync::OnceLock<wgpu::ComputePipeline>>>>,
 }

@@ -131,7 +131,7 @@ pub struct PassParams {
     pub fade_dst: u32,
     pub fade_frames: u32,
     pub fade_mean: u32,
-    /// The fade's pop test: the mean change over a 3x3 neighbourhood, of 255
+    /// The fade's pop test: how much a jump must change a pixel's colour, of 255
     /// ([`crate::passes::advect::AdvectOptions::fade_change`]).
     pub fade_change: u32,
     /// Keeps the size a multiple of 8 bytes (the last 8 of the 256-byte stride).
