@@ -1586,6 +1586,29 @@ fn frames_continue_with_another_feature_weight() {
     ));
 }
 
+/// The fading tests' flow: a vortex fast enough to renew patches within a few frames.
+const FAST_VORTEX: Flow = Flow::Vortex {
+    cx: 0.5,
+    cy: 0.5,
+    omega: 0.06,
+};
+
+/// Frame `f`'s velocities of `flow` over a `w` x `h` output, and as the GPU quantizes them
+/// (dt 1).
+fn frame_velocities(flow: &Flow, w: u32, h: u32, f: u64) -> (Vec<[f32; 2]>, Vec<[i32; 2]>) {
+    let v = flow.sample(w, h, f as f32).unwrap();
+    let q = v.iter().map(|&v| quantize_velocity(v, 1.0)).collect();
+    (v, q)
+}
+
+/// The output index of region pixel `t` of fade dispatch `p` (a `w` x `h` window), if it
+/// lies in the window.
+fn window_index(p: &texsyn::passes::common::PassParams, t: usize, w: u32, h: u32) -> Option<usize> {
+    let (x, y) = (t as i32 % p.size[0], t as i32 / p.size[0]);
+    let (wx, wy) = (x - p.window_offset[0], y - p.window_offset[1]);
+    (wx >= 0 && wy >= 0 && wx < w as i32 && wy < h as i32).then(|| (wy * w as i32 + wx) as usize)
+}
+
 /// One-frame fades (`fade: 1`) keep the coordinates alone as fade state: GPU = CPU
 /// (coordinates and colours) over frames of a fast vortex, some pixels show a blend (not
 /// their texel), and longer fades after them start every pixel unfaded.
@@ -1598,11 +1621,7 @@ fn one_frame_fades_match_cpu_and_longer_ones_start_unfaded() {
         height: h,
         ..SynthParams::default()
     };
-    let flow = Flow::Vortex {
-        cx: 0.5,
-        cy: 0.5,
-        omega: 0.06,
-    };
+    let flow = FAST_VORTEX;
     let opts = AdvectOptions {
         fade: 1,
         fade_change: 40,
@@ -1619,8 +1638,7 @@ fn one_frame_fades_match_cpu_and_longer_ones_start_unfaded() {
             adv.set_options(ctx(), AdvectOptions { fade: 4, ..opts })
                 .unwrap();
         }
-        let v = flow.sample(w, h, f as f32).unwrap();
-        let q: Vec<[i32; 2]> = v.iter().map(|&v| quantize_velocity(v, 1.0)).collect();
+        let (v, q) = frame_velocities(&flow, w, h, f);
         let schedule = adv.frame_schedule();
         let p = schedule.last().unwrap().params;
         assert_eq!(
@@ -1641,14 +1659,9 @@ fn one_frame_fades_match_cpu_and_longer_ones_start_unfaded() {
         assert_eq!(adv.read_rgba8(ctx()).unwrap(), rgba, "frame {}", f + 1);
         if f < 8 {
             let state = &cpu[p.fade_dst as usize..][..3 * region];
-            for t in 0..region {
-                let (x, y) = (t as i32 % p.size[0], t as i32 / p.size[0]);
-                let (wx, wy) = (x - p.window_offset[0], y - p.window_offset[1]);
-                if wx >= 0 && wy >= 0 && wx < w as i32 && wy < h as i32 {
-                    let o = (wy * w as i32 + wx) as usize;
-                    let texel = texsyn::passes::gather_aniso::color_at(&p, &a.colors, state[3 * t]);
-                    blended += (out.colors[o] != texel) as usize;
-                }
+            for (t, o) in (0..region).filter_map(|t| Some((t, window_index(&p, t, w, h)?))) {
+                let texel = texsyn::passes::gather_aniso::color_at(&p, &a.colors, state[3 * t]);
+                blended += (out.colors[o] != texel) as usize;
             }
         }
     }
@@ -1667,11 +1680,7 @@ fn fade_change_sets_the_pop_test() {
         height: h,
         ..SynthParams::default()
     };
-    let flow = Flow::Vortex {
-        cx: 0.5,
-        cy: 0.5,
-        omega: 0.06,
-    };
+    let flow = FAST_VORTEX;
     let mut faded = Vec::new();
     for change in [20u32, 120] {
         let opts = AdvectOptions {
@@ -1686,8 +1695,7 @@ fn fade_change_sets_the_pop_test() {
         let region = plan.fade_half_len() as usize / 3;
         let mut count = 0usize;
         for f in 0..8u64 {
-            let v = flow.sample(w, h, f as f32).unwrap();
-            let q: Vec<[i32; 2]> = v.iter().map(|&v| quantize_velocity(v, 1.0)).collect();
+            let (v, q) = frame_velocities(&flow, w, h, f);
             let schedule = adv.frame_schedule();
             let p = schedule.last().unwrap().params;
             assert_eq!(p.fade_change, change);
@@ -1727,11 +1735,7 @@ fn fading_frames_match_cpu_and_fade_pops() {
         fade: n,
         ..AdvectOptions::keep_look()
     };
-    let flow = Flow::Vortex {
-        cx: 0.5,
-        cy: 0.5,
-        omega: 0.06,
-    };
+    let flow = FAST_VORTEX;
     let mut adv = Advection::new(ctx(), synth.clone(), &params, opts).unwrap();
     let plan = adv.plan().clone();
     let jac = plan.jacobians();
@@ -1740,8 +1744,7 @@ fn fading_frames_match_cpu_and_fade_pops() {
     let region = plan.fade_half_len() as usize / 3;
     let (mut faded, mut shown) = (0usize, 0usize);
     for f in 0..12u64 {
-        let v = flow.sample(w, h, f as f32).unwrap();
-        let q: Vec<[i32; 2]> = v.iter().map(|&v| quantize_velocity(v, 1.0)).collect();
+        let (v, q) = frame_velocities(&flow, w, h, f);
         let schedule = adv.frame_schedule();
         let fade = schedule.last().unwrap();
         assert_eq!(fade.kind, texsyn::passes::plan::PassKind::Fade);
@@ -1760,10 +1763,7 @@ fn fading_frames_match_cpu_and_fade_pops() {
             let left = state[3 * t + 2][0];
             assert!((0..=n as i32).contains(&left), "{left} frames left");
             faded += (left > 0) as usize;
-            let (x, y) = (t as i32 % p.size[0], t as i32 / p.size[0]);
-            let (wx, wy) = (x - p.window_offset[0], y - p.window_offset[1]);
-            if left == 0 && wx >= 0 && wy >= 0 && wx < w as i32 && wy < h as i32 {
-                let o = (wy * w as i32 + wx) as usize;
+            if let (0, Some(o)) = (left, window_index(p, t, w, h)) {
                 let texel = texsyn::passes::gather_aniso::color_at(p, &a.colors, state[3 * t]);
                 assert_eq!(out.colors[o], texel);
                 shown += 1;
@@ -1776,8 +1776,7 @@ fn fading_frames_match_cpu_and_fade_pops() {
     // left), GPU = CPU.
     adv.set_options(ctx(), AdvectOptions { fade: 2, ..opts })
         .unwrap();
-    let v = flow.sample(w, h, 12.0).unwrap();
-    let q: Vec<[i32; 2]> = v.iter().map(|&v| quantize_velocity(v, 1.0)).collect();
+    let (v, q) = frame_velocities(&flow, w, h, 12);
     let schedule = adv.frame_schedule();
     adv.step(ctx(), &v, 1.0).unwrap();
     run_cpu_frame(&a, &schedule, &mut cpu, &jac, &[], &q).unwrap();
@@ -1802,8 +1801,7 @@ fn fading_frames_match_cpu_and_fade_pops() {
         if f == 2 {
             adv.set_options(ctx(), opts).unwrap();
         }
-        let v = flow.sample(w, h, f as f32).unwrap();
-        let q: Vec<[i32; 2]> = v.iter().map(|&v| quantize_velocity(v, 1.0)).collect();
+        let (v, q) = frame_velocities(&flow, w, h, f);
         let schedule = adv.frame_schedule();
         if f >= 2 {
             let src = schedule.last().unwrap().params.fade_src;
@@ -1827,8 +1825,7 @@ fn fading_frames_match_cpu_and_fade_pops() {
         plan.advect_buffer_len(true),
     );
     for f in 0..3u64 {
-        let v = flow.sample(w, h, f as f32).unwrap();
-        let q: Vec<[i32; 2]> = v.iter().map(|&v| quantize_velocity(v, 1.0)).collect();
+        let (v, q) = frame_velocities(&flow, w, h, f);
         let schedule = adv.frame_schedule();
         let buffer = velocity_buffer(&v);
         let mut encoder = ctx().device.create_command_encoder(&Default::default());
