@@ -1682,7 +1682,7 @@ fn fade_change_sets_the_pop_test() {
     };
     let flow = FAST_VORTEX;
     let mut faded = Vec::new();
-    for change in [20u32, 120] {
+    for change in [20u32, 80] {
         let opts = AdvectOptions {
             fade: 2,
             fade_change: change,
@@ -1711,8 +1711,8 @@ fn fade_change_sets_the_pop_test() {
         }
         faded.push(count);
     }
-    eprintln!("pixel-frames fading at 20 and 120: {faded:?}");
-    assert!(faded[0] > faded[1], "{faded:?}");
+    eprintln!("pixel-frames fading at 20 and 80: {faded:?}");
+    assert!(faded[0] > faded[1] && faded[1] > 0, "{faded:?}");
 }
 
 /// Fading (`AdvectOptions::fade`): GPU = CPU (coordinates, fade state and colours) over

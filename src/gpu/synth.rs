@@ -450,7 +450,10 @@ impl LazyPipeline {
                     entry_point: Some(s.entry_point),
                     compilation_options: wgpu::PipelineCompilationOptions {
                         constants: &constants,
-                        ..Default::default()
+                        // Only fade.wgsl has workgroup memory, and every invocation writes
+                        // its slot before any reads it: zeroing it first costs a pass over
+                        // it and a barrier.
+                        zero_initialize_workgroup_memory: false,
                     },
                     cache: None,
                 })

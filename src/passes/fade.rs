@@ -1,8 +1,9 @@
 //! Mirror of `shaders/fade.wgsl`: the last pass of an advection frame with fading
 //! ([`crate::passes::advect::AdvectOptions::fade`]). A pixel whose coordinate jumped
 //! since the previous frame (it landed more than [`FADE_JUMP`] from where the flow carried
-//! the previous frame's coordinate) where the jump changed its colour by more than
-//! `fade_change` (by default [`FADE_CHANGE`]: a renewed or remade patch, a pop) fades
+//! the previous frame's coordinate) where the jumps around it changed the colour by
+//! more than `fade_change` on average (by default [`FADE_CHANGE`]: a renewed or remade
+//! patch, a pop; [`popped`]) fades
 //! from what it showed to its new content over `fade_frames` frames. Other jumps (a seam
 //! that moved, a patch remade alike) show at once.
 //!
@@ -17,12 +18,16 @@
 //! mean) + w (g - mean)) / sqrt(a^2 + w^2)` with `a = N + 1 - w`, around the exemplar's
 //! mean colour (a linear blend of two unrelated patches is flat halfway through).
 //!
-//! The test looks at the pixel alone, in one pass. Until the fifty-first session it was
-//! the mean change of the 3x3 neighbourhood, in a pass of its own before this one: a
-//! slightly better trade (gravel, 1-frame fades: 0.60% of the 8x8 blocks popping per
-//! frame at x1.17 of frame 0's texture energy, against 0.61% at x1.20 now), but on
-//! lavapipe, where a pass costs about its memory accesses whether or not a pixel takes
-//! the branch that holds them, the two passes took 29 ms of a 512x512 frame, this one 13.
+//! The pop test (fifty-third session) is the mean change over the pixel's 3x3
+//! neighbourhood within its [`TILE`]x[`TILE`] tile (the pass's workgroup, whose
+//! invocations share their changes through workgroup memory; pixels that did not jump
+//! count 0): an isolated speck that changed is no pop, a patch that changed is. It trades
+//! better than the pixel's own change, which the fifty-first session tested (gravel,
+//! 1-frame fades: 0.47% of the 8x8 blocks popping per frame at x1.18 of frame 0's
+//! texture energy, against 0.61% at x1.20), for 2-3 ms more of a 512x512 frame on
+//! lavapipe. A neighbourhood across tiles needed a pass of its own (29 ms against 13): on
+//! lavapipe a pass costs about its memory accesses whether or not a pixel takes the branch
+//! that holds them.
 
 use super::advect::{offset, velocity_at, whole_shift};
 use super::common::{fit_coord, wrap, PassParams};
@@ -33,13 +38,15 @@ use super::gather_aniso::color_at;
 pub const FADE_JUMP: i32 = 384;
 
 /// The default pop test ([`crate::passes::advect::AdvectOptions::fade_change`],
-/// `PassParams::fade_change`): the jump changed the pixel's colour by more than this (of
-/// 255; `(|dR| + 2 |dG| + |dB|) / 4`). Most jumps are not pops: seams that moved, patches
-/// remade alike. Measured (fifty-first session; gravel, 256x256, 300 frames of the
-/// default vortex, `keep_look`, 1-frame fades; texture energy at frame 300 over frame 0's
-/// and the 8x8 blocks changing by 0.15 of full scale per frame): 90 x1.22 and 0.34%, 100
-/// x1.20 and 0.61%, 110 x1.17 and 0.96% (none: x1.13 and 1.58%).
-pub const FADE_CHANGE: u32 = 100;
+/// `PassParams::fade_change`): a pixel that jumped fades where the jumps around it
+/// ([`popped`]) changed the colour by more than this on average (of 255;
+/// `(|dR| + 2 |dG| + |dB|) / 4`). Most jumps are not pops: seams that moved, patches
+/// remade alike.
+/// Measured (fifty-third session; gravel, 256x256, 300 frames of the default vortex,
+/// `keep_look`, 1-frame fades; texture energy over frame 0's, mean over frames 10-300, and
+/// the 8x8 blocks changing by 0.15 of full scale per frame): 50 x1.24 and 0.09%, 55 x1.21
+/// and 0.26%, 60 x1.19 and 0.47%, 70 x1.16 and 1.03% (none: x1.13 and 1.58%).
+pub const FADE_CHANGE: u32 = 60;
 
 /// Entries of fade state per pixel of the finest level's region.
 pub const STATE_ENTRIES: u32 = 3;
@@ -137,18 +144,41 @@ impl<'a> Frame<'a> {
         fit_coord([c[0] - o[0], c[1] - o[1]], p)
     }
 
-    /// Region pixel `q`'s new fade state: its ghost and the frames the ghost has left.
-    fn state(&self, q: [i32; 2]) -> ([i32; 2], i32) {
+    /// Region pixel `q`'s state upstream (its index) and the coordinate the flow carried
+    /// there, and how much the pixel's colour changed if it jumped from it (else
+    /// [`NO_JUMP`]); `None` if nothing is upstream (the first frame, or a pixel new to the
+    /// region).
+    fn jump(&self, q: [i32; 2]) -> Option<(usize, [i32; 2], i32)> {
         let p = self.p;
+        if p.fade_src == 0 {
+            return None;
+        }
+        let si = self.upstream(q)?;
         let i = self.index(q);
         let s = self.coords[i];
-        if p.fade_src == 0 {
-            return (s, 0);
-        }
-        let Some(si) = self.upstream(q) else {
+        let a = self.carried(q, si, 0);
+        // Most jumps are not pops: seams that moved, patches remade alike.
+        let change = if jumped(p, s, a, self.jac[i]) {
+            grey_change(color_at(p, self.colors, s), color_at(p, self.colors, a))
+        } else {
+            NO_JUMP
+        };
+        Some((si, a, change))
+    }
+
+    /// Region pixel `q`'s new fade state, its ghost and the frames the ghost has left,
+    /// from its [`Frame::jump`] and whether it popped.
+    fn state(
+        &self,
+        q: [i32; 2],
+        jump: Option<(usize, [i32; 2], i32)>,
+        pop: bool,
+    ) -> ([i32; 2], i32) {
+        let p = self.p;
+        let s = self.coords[self.index(q)];
+        let Some((si, a, _)) = jump else {
             return (s, 0);
         };
-        let a = self.carried(q, si, 0);
         // At most N: a fade saved under a longer N goes on with the new one. One-frame
         // fades keep no ghost from frame to frame.
         let left = if p.fade_frames > 1 {
@@ -156,10 +186,6 @@ impl<'a> Frame<'a> {
         } else {
             0
         };
-        // A pop: the pixel jumped, and the jump changed its colour.
-        let pop = jumped(p, s, a, self.jac[i])
-            && grey_change(color_at(p, self.colors, s), color_at(p, self.colors, a))
-                > p.fade_change as i32;
         // A pop while a ghost shows: the one shown most stays the ghost.
         if pop && 2 * left <= p.fade_frames as i32 {
             (a, p.fade_frames as i32)
@@ -169,6 +195,34 @@ impl<'a> Frame<'a> {
             (s, 0)
         }
     }
+}
+
+/// A pixel's change where it did not jump (counts 0 in the pop test).
+pub const NO_JUMP: i32 = -1;
+
+/// The side of the square tiles the pop test looks within: the fade pass's workgroups,
+/// from the region's origin.
+pub const TILE: i32 = 8;
+
+/// Whether the pixel at `q` of a region of `size` popped, given every region pixel's
+/// change (row-major; [`NO_JUMP`] where it did not jump): the mean change over its 3x3
+/// neighbourhood within its [`TILE`]-square tile (pixels that did not jump count 0)
+/// exceeds `fade_change` (`popped` in `fade.wgsl`, which shares the changes through
+/// workgroup memory). An isolated speck that changed is no pop, a patch that changed is.
+pub fn popped(changes: &[i32], size: [i32; 2], q: [i32; 2], fade_change: u32) -> bool {
+    let tile = [q[0] - q[0] % TILE, q[1] - q[1] % TILE];
+    let (mut sum, mut n) = (0, 0);
+    for dy in -1..=1 {
+        for dx in -1..=1 {
+            let m = [q[0] + dx, q[1] + dy];
+            let in_tile = (0..2).all(|k| m[k] >= tile[k] && m[k] < tile[k] + TILE);
+            if in_tile && m[0] < size[0] && m[1] < size[1] {
+                sum += changes[(m[1] * size[0] + m[0]) as usize].max(0);
+                n += 1;
+            }
+        }
+    }
+    sum > n * fade_change as i32
 }
 
 /// How much a colour changed from `a` to `c`, `(|dR| + 2 |dG| + |dB|) / 4` (0..255;
@@ -190,24 +244,26 @@ pub fn run(
     let n = p.window_size[0] as usize * p.window_size[1] as usize;
     let (mut out_coords, mut out_colors) = (vec![[0; 2]; n], vec![[0; 4]; n]);
     let frame = Frame::new(p, coords, jac, velocity, colors);
+    let pixels = || (0..p.size[1]).flat_map(|y| (0..p.size[0]).map(move |x| [x, y]));
+    let jumps: Vec<_> = pixels().map(|q| frame.jump(q)).collect();
+    let changes: Vec<i32> = jumps.iter().map(|j| j.map_or(NO_JUMP, |j| j.2)).collect();
     let mut state = Vec::with_capacity((p.size[0] * p.size[1]) as usize * 3);
-    for y in 0..p.size[1] {
-        for x in 0..p.size[0] {
-            let s = frame.coords[frame.index([x, y])];
-            let (ghost, w) = frame.state([x, y]);
-            state.extend([s, ghost, [w, 0]]);
-            let (wx, wy) = (x - p.window_offset[0], y - p.window_offset[1]);
-            if wx < 0 || wy < 0 || wx >= p.window_size[0] || wy >= p.window_size[1] {
-                continue;
-            }
-            let o = (wy * p.window_size[0] + wx) as usize;
-            let mut v = color_at(p, colors, s);
-            if w > 0 {
-                v = blend(p, v, color_at(p, colors, ghost), w);
-            }
-            out_coords[o] = s;
-            out_colors[o] = v;
+    for (q, &jump) in pixels().zip(&jumps) {
+        let s = frame.coords[frame.index(q)];
+        let pop = jump.is_some_and(|j| j.2 >= 0) && popped(&changes, p.size, q, p.fade_change);
+        let (ghost, w) = frame.state(q, jump, pop);
+        state.extend([s, ghost, [w, 0]]);
+        let (wx, wy) = (q[0] - p.window_offset[0], q[1] - p.window_offset[1]);
+        if wx < 0 || wy < 0 || wx >= p.window_size[0] || wy >= p.window_size[1] {
+            continue;
         }
+        let o = (wy * p.window_size[0] + wx) as usize;
+        let mut v = color_at(p, colors, s);
+        if w > 0 {
+            v = blend(p, v, color_at(p, colors, ghost), w);
+        }
+        out_coords[o] = s;
+        out_colors[o] = v;
     }
     let dst = &mut coords[p.fade_dst as usize..][..state.len()];
     if p.fade_frames > 1 {
@@ -280,6 +336,41 @@ mod tests {
         assert!(jumped(&p, [0, 0], [n - 512, 0], id));
         // Twice the Jacobian (the texture minified 2x): twice the tolerance.
         assert!(!jumped(&p, [0, 0], [700, 0], [2048, 0, 0, 2048]));
+    }
+
+    #[test]
+    fn pops_are_patches_that_changed_within_a_tile() {
+        // A 12x10 region: tiles of 8 from its origin, the right and bottom ones cut short.
+        let size = [12, 10];
+        let mut changes = vec![NO_JUMP; 120];
+        let mut set = |x: i32, y: i32, c: i32| changes[(y * 12 + x) as usize] = c;
+        // An isolated speck that changed a lot: no pop (mean 200 / 9 over its 3x3).
+        set(3, 3, 200);
+        // A 3x3 patch that changed by 70 in tile (0, 0)'s corner: its centre's mean is 70.
+        for y in 5..8 {
+            for x in 5..8 {
+                set(x, y, 70);
+            }
+        }
+        assert!(!popped(&changes, size, [3, 3], 60));
+        assert!(popped(&changes, size, [6, 6], 60));
+        assert!(!popped(&changes, size, [6, 6], 70));
+        // (7, 7), the tile's corner: its window is the 2x2 inside the tile, all 70 (across
+        // the tile's edges it would be 4 of 9).
+        assert!(popped(&changes, size, [7, 7], 60));
+        // Across a tile's edge the neighbours do not count: (7, 7) and (8, 7) changed, in
+        // different tiles, each alone in its window.
+        let mut changes = vec![NO_JUMP; 120];
+        changes[7 * 12 + 7] = 100;
+        changes[7 * 12 + 8] = 100;
+        assert!(!popped(&changes, size, [7, 7], 30));
+        // At the region's bottom-right corner the window holds the 2x2 inside the region.
+        let mut changes = vec![NO_JUMP; 120];
+        for (x, y) in [(10, 8), (11, 8), (10, 9), (11, 9)] {
+            changes[y * 12 + x] = 50;
+        }
+        assert!(popped(&changes, size, [11, 9], 49));
+        assert!(!popped(&changes, size, [11, 9], 50));
     }
 
     #[test]
