@@ -25,12 +25,13 @@
 #include "shared/exemplar_color.wgsl"
 #include "shared/fade.wgsl"
 
-// The new colour c and the ghost's g, the ghost at w / (N + 1): mean + (a (c - mean) +
-// w (g - mean)) / sqrt(a^2 + w^2) with a = N + 1 - w, in fixed point, clamped to 0..255.
+// The new colour c and the ghost's g, w frames left of N: mean + (a (c - mean) + w (g -
+// mean)) / sqrt(a^2 + w^2) with a = N + 2 - w (the new content leads by one step: a
+// one-frame fade shows the ghost at 1 against 2), in fixed point, clamped to 0..255.
 fn fade_blend(c: vec4<i32>, g: vec4<i32>, w: i32) -> vec4<i32> {
     let m = vec4<i32>(vec4<u32>(params.fade_mean, params.fade_mean >> 8u, params.fade_mean >> 16u,
         params.fade_mean >> 24u) & vec4<u32>(255u));
-    let a = i32(params.fade_frames) + 1 - w;
+    let a = i32(params.fade_frames) + 2 - w;
     // w > 0, so a^2 + w^2 >= 2 and isqrt's argument stays below 2^30.
     let f = isqrt(i32((1u << 30u) / u32(a * a + w * w)));
     let num = a * (c - m) + w * (g - m);

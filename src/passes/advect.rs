@@ -351,7 +351,7 @@ pub struct AdvectOptions {
     /// blended, only the colours; a uniform flow of whole pixels moves the texture as
     /// exactly as without. One frame trades best: measured (fifty-third session,
     /// lavapipe; 256x256, 300 frames of the default vortex, with [`Self::keep_look`]) the
-    /// 8x8 blocks that pop per frame on gravel 0.47% against 1.58% without, at a texture
+    /// 8x8 blocks that pop per frame on gravel 0.21% against 1.58% without, at a texture
     /// energy at frame 300 of x1.18 frame 0's against x1.13 (blended pixels match no
     /// exemplar neighbourhood); longer fades cost more energy for little (README,
     /// *Advection*). On lavapipe the pass takes about 12 ms of a 512x512 frame, against
@@ -360,10 +360,10 @@ pub struct AdvectOptions {
     /// The fade's pop test (with [`Self::fade`]): a pixel that jumped fades where the
     /// mean change of colour over its 3x3 neighbourhood (within the pass's 8x8 tile;
     /// pixels that did not jump count 0) exceeds this (of 255, `(|dR| + 2 |dG| + |dB|) /
-    /// 4`; at most 255; default [`super::fade::FADE_CHANGE`], 60). Lower fades more pops
+    /// 4`; at most 255; default [`super::fade::FADE_CHANGE`], 45). Lower fades more pops
     /// for a higher texture energy: measured (as for [`Self::fade`], 1-frame fades,
-    /// gravel; the energy's mean over frames 10-300) 50: x1.24, 0.09% of the blocks
-    /// popping; 55: x1.21, 0.26%; 60: x1.19, 0.47%; 70: x1.16, 1.03%.
+    /// gravel; the energy's mean over frames 10-300) 40: x1.20, 0.13% of the blocks
+    /// popping; 45: x1.19, 0.21%; 50: x1.17, 0.38%; 55: x1.16, 0.59%.
     pub fade_change: u32,
 }
 

@@ -15,16 +15,20 @@
 //! shows on the frame of the pop only, so only `A` is read and written. Ghosts are
 //! coordinates, not colours, so they move with the texture without being resampled
 //! (nothing blurs). The colours are blended so that the contrast stays: `mean + (a (c -
-//! mean) + w (g - mean)) / sqrt(a^2 + w^2)` with `a = N + 1 - w`, around the exemplar's
-//! mean colour (a linear blend of two unrelated patches is flat halfway through).
+//! mean) + w (g - mean)) / sqrt(a^2 + w^2)` with `a = N + 2 - w`, around the exemplar's
+//! mean colour (a linear blend of two unrelated patches is flat halfway through). The
+//! new content leads by one step (`N + 2`, not `N + 1`): a one-frame fade shows the ghost
+//! at 1 against 2, not halfway, which trades better (gravel, 1-frame fades: 0.21% of the
+//! blocks popping at x1.19 of frame 0's energy at its threshold of 45, against 0.47% at
+//! x1.19 halfway at 60).
 //!
 //! The pop test (fifty-third session) is the mean change over the pixel's 3x3
 //! neighbourhood within its [`TILE`]x[`TILE`] tile (the pass's workgroup, whose
 //! invocations share their changes through workgroup memory; pixels that did not jump
 //! count 0): an isolated speck that changed is no pop, a patch that changed is. It trades
 //! better than the pixel's own change, which the fifty-first session tested (gravel,
-//! 1-frame fades: 0.47% of the 8x8 blocks popping per frame at x1.18 of frame 0's
-//! texture energy, against 0.61% at x1.20), for 2-3 ms more of a 512x512 frame on
+//! 1-frame fades blended halfway: 0.47% of the 8x8 blocks popping per frame at x1.18 of
+//! frame 0's texture energy, against 0.61% at x1.20), for 2-3 ms more of a 512x512 frame on
 //! lavapipe. A neighbourhood across tiles needed a pass of its own (29 ms against 13): on
 //! lavapipe a pass costs about its memory accesses whether or not a pixel takes the branch
 //! that holds them.
@@ -44,9 +48,9 @@ pub const FADE_JUMP: i32 = 384;
 /// remade alike.
 /// Measured (fifty-third session; gravel, 256x256, 300 frames of the default vortex,
 /// `keep_look`, 1-frame fades; texture energy over frame 0's, mean over frames 10-300, and
-/// the 8x8 blocks changing by 0.15 of full scale per frame): 50 x1.24 and 0.09%, 55 x1.21
-/// and 0.26%, 60 x1.19 and 0.47%, 70 x1.16 and 1.03% (none: x1.13 and 1.58%).
-pub const FADE_CHANGE: u32 = 60;
+/// the 8x8 blocks changing by 0.15 of full scale per frame): 40 x1.20 and 0.13%, 45 x1.19
+/// and 0.21%, 50 x1.17 and 0.38%, 55 x1.16 and 0.59% (none: x1.13 and 1.58%).
+pub const FADE_CHANGE: u32 = 45;
 
 /// Entries of fade state per pixel of the finest level's region.
 pub const STATE_ENTRIES: u32 = 3;
@@ -71,10 +75,11 @@ pub fn jumped(p: &PassParams, s: [i32; 2], a: [i32; 2], j: [i32; 4]) -> bool {
     d[0].abs() > limit || d[1].abs() > limit
 }
 
-/// The new colour `c` and the ghost's `g`, the ghost at `w / (N + 1)` (`fade_blend`).
+/// The new colour `c` and the ghost's `g`, `w` frames left of `N`: the ghost weighted
+/// `w` against `N + 2 - w` (`fade_blend`).
 pub fn blend(p: &PassParams, c: [u8; 4], g: [u8; 4], w: i32) -> [u8; 4] {
     let m = p.fade_mean.to_le_bytes();
-    let a = p.fade_frames as i32 + 1 - w;
+    let a = p.fade_frames as i32 + 2 - w;
     let f = ((1u32 << 30) / (a * a + w * w) as u32).isqrt() as i32;
     std::array::from_fn(|k| {
         let (mk, ck, gk) = (m[k] as i32, c[k] as i32, g[k] as i32);
@@ -303,19 +308,27 @@ mod tests {
 
     #[test]
     fn blend_keeps_the_new_colour_at_no_ghost_and_the_contrast_halfway() {
-        let p = params(7, [100, 100, 100, 255]);
+        let p = params(6, [100, 100, 100, 255]);
         // No ghost left: the new colour exactly.
         assert_eq!(
             blend(&p, [30, 200, 120, 255], [0, 0, 0, 255], 0),
             [30, 200, 120, 255]
         );
-        // Halfway (w = 4 of N + 1 = 8) between two deviations of 40 of opposite signs on
+        // Halfway (w = 4 against N + 2 - w = 4) between two deviations of 40 of opposite signs on
         // red, equal on green: red stays at the mean, green 40 * 2 / sqrt(2) = 56.6 above.
         let v = blend(&p, [140, 140, 100, 255], [60, 140, 100, 255], 4);
         assert_eq!(v, [100, 157, 100, 255]);
         // Just popped (w = N): mostly the ghost.
-        let v = blend(&p, [200, 100, 100, 255], [0, 100, 100, 255], 7);
+        let v = blend(&p, [200, 100, 100, 255], [0, 100, 100, 255], 6);
         assert!(v[0] < 40, "{v:?}");
+        // A one-frame fade: the new content leads, 100 (2 - 1) / sqrt(5) = 44.7 above.
+        let v = blend(
+            &params(1, [100; 4]),
+            [200, 100, 100, 255],
+            [0, 100, 100, 255],
+            1,
+        );
+        assert_eq!(v[0], 145);
         // Clamped to 0..255.
         assert_eq!(blend(&p, [255, 0, 0, 255], [255, 0, 0, 255], 4)[0], 255);
     }
