@@ -2,8 +2,8 @@
 // finest level's colours, where a pixel's coordinate jumped since the previous frame (it
 // landed more than FADE_JUMP from where the flow carried the previous frame's) and the
 // jumps around it changed the colour by more than params.fade_change on average (a pop: a
-// renewed or remade patch) the pixel fades from what it showed to its new content over params.fade_frames
-// frames. Per pixel of the finest level's region the fade state holds the coordinate (A),
+// renewed or remade patch) the pixel fades from what it showed to its new content over
+// params.fade_frames frames. Per pixel of the finest level's region the fade state holds the coordinate (A),
 // the ghost's coordinate (B) and the frames the ghost has left (w); this frame reads the
 // state at params.fade_src (none: 0) k pixels upstream, moves A (and B) with the flow as
 // advect.wgsl moves coordinates, and writes the new state at params.fade_dst (two halves,
@@ -63,7 +63,10 @@ fn popped(l: vec2<i32>) -> bool {
 }
 
 @compute @workgroup_size(8, 8, 1)
-fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>) {
+fn main(
+    @builtin(global_invocation_id) gid: vec3<u32>,
+    @builtin(local_invocation_id) lid: vec3<u32>,
+) {
     opaque = i32(gid.z);
     let q = vec2<i32>(gid.xy);
     // Every invocation reaches the barrier: no early return before it.

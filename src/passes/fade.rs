@@ -2,9 +2,9 @@
 //! ([`crate::passes::advect::AdvectOptions::fade`]). A pixel whose coordinate jumped
 //! since the previous frame (it landed more than [`FADE_JUMP`] from where the flow carried
 //! the previous frame's coordinate) where the jumps around it changed the colour by
-//! more than `fade_change` on average (by default [`FADE_CHANGE`]: a renewed or remade
-//! patch, a pop; [`popped`]) fades
-//! from what it showed to its new content over `fade_frames` frames. Other jumps (a seam
+//! more than `fade_change` on average ([`popped`]; by default [`FADE_CHANGE`]: a renewed
+//! or remade patch, a pop) fades from what it showed to its new content over
+//! `fade_frames` frames. Other jumps (a seam
 //! that moved, a patch remade alike) show at once.
 //!
 //! The fade state, per pixel of the finest level's region, is three coordinate entries:
@@ -27,11 +27,11 @@
 //! invocations share their changes through workgroup memory; pixels that did not jump
 //! count 0): an isolated speck that changed is no pop, a patch that changed is. It trades
 //! better than the pixel's own change, which the fifty-first session tested (gravel,
-//! 1-frame fades blended halfway: 0.47% of the 8x8 blocks popping per frame at x1.18 of
-//! frame 0's texture energy, against 0.61% at x1.20), for 2-3 ms more of a 512x512 frame on
-//! lavapipe. A neighbourhood across tiles needed a pass of its own (29 ms against 13): on
-//! lavapipe a pass costs about its memory accesses whether or not a pixel takes the branch
-//! that holds them.
+//! 1-frame fades blended halfway: 0.47% of the 8x8 blocks popping per frame at x1.18
+//! of frame 0's texture energy, against 0.61% at x1.20), for 2-3 ms more of a 512x512
+//! frame on lavapipe. A neighbourhood across tiles needed a pass of its own (29 ms
+//! against 13): on lavapipe a pass costs about its memory accesses whether or not a
+//! pixel takes the branch that holds them.
 
 use super::advect::{offset, velocity_at, whole_shift};
 use super::common::{fit_coord, wrap, PassParams};
@@ -314,8 +314,9 @@ mod tests {
             blend(&p, [30, 200, 120, 255], [0, 0, 0, 255], 0),
             [30, 200, 120, 255]
         );
-        // Halfway (w = 4 against N + 2 - w = 4) between two deviations of 40 of opposite signs on
-        // red, equal on green: red stays at the mean, green 40 * 2 / sqrt(2) = 56.6 above.
+        // Halfway (w = 4 against N + 2 - w = 4) between two deviations of 40 of opposite
+        // signs on red, equal on green: red stays at the mean, green 40 * 2 / sqrt(2) =
+        // 56.6 above.
         let v = blend(&p, [140, 140, 100, 255], [60, 140, 100, 255], 4);
         assert_eq!(v, [100, 157, 100, 255]);
         // Just popped (w = N): mostly the ghost.
