@@ -16,7 +16,7 @@ fn velocity_at(abs_p: vec2<i32>) -> vec2<i32> {
 // whole_shift): in frames the change of the drift's whole level pixels, else the
 // centre velocity rounded to whole level pixels.
 fn whole_shift() -> vec2<i32> {
-    if (params.drift != 0u) {
+    if ((params.drift | u32(opaque)) != 0u) {
         let s = vec2<u32>(params.steps);
         return (coords[params.drift + 1u] >> s) - (coords[params.drift] >> s);
     }
