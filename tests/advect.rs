@@ -1359,6 +1359,63 @@ fn advection_frames_take_turns_with_the_similarity_sets() {
     }
 }
 
+/// With `keep_look` every advected level runs its four subpasses every frame, and each
+/// follows `sets_every` (fifty-fourth session: the coarser advected levels scored their
+/// sets on every correction before, a quarter of the frame's GPU time for the same
+/// figures): per frame, four subpasses divided by `sets_every` score the similarity sets
+/// (one for 4, none or one for 16 in turn), and over `sets_every` frames each parity class
+/// scores them once.
+#[test]
+fn keep_look_levels_take_turns_with_the_similarity_sets() {
+    use texsyn::passes::plan::PassKind;
+    let ex = common::gravel_crop(32);
+    let a = analyze(&ex, &AnalysisOptions::default(), |_| {}).unwrap();
+    assert_eq!(AdvectOptions::keep_look().sets_every, 4);
+    let params = Advection::synthesis_params(&SynthParams {
+        width: 40,
+        height: 24,
+        ..Default::default()
+    });
+    let plan = SynthPlan::new(&a, &params).unwrap();
+    let n = plan.levels.len();
+    for sets_every in [1u32, 2, 4] {
+        let o = AdvectOptions {
+            sets_every,
+            ..AdvectOptions::keep_look()
+        };
+        let advected = n - 1 - o.levels + 1..n - 1;
+        assert_eq!(advected.len(), 3);
+        for level in advected {
+            let mut per_class: std::collections::HashMap<[i32; 2], usize> = Default::default();
+            for frame in 0..8u64 {
+                let ks: Vec<(i32, [i32; 2])> = plan
+                    .advect_schedule(&a, &o, frame)
+                    .iter()
+                    .filter(|d| d.level == level && d.kind == PassKind::CorrectAniso)
+                    .map(|d| (d.params.k, d.params.parity))
+                    .collect();
+                assert_eq!(ks.len(), 4, "level {level}, frame {frame}");
+                let with_sets: Vec<_> = ks.iter().filter(|(k, _)| *k == a.k as i32).collect();
+                assert_eq!(
+                    with_sets.len(),
+                    4 / sets_every as usize,
+                    "level {level}, frame {frame}, sets every {sets_every}"
+                );
+                assert!(ks.iter().all(|(k, _)| *k == a.k as i32 || *k == 1));
+                for (_, parity) in with_sets {
+                    *per_class.entry(*parity).or_default() += 1;
+                }
+            }
+            // Over 8 frames each class scores them 8 / sets_every times.
+            assert_eq!(per_class.len(), 4, "level {level}");
+            assert!(
+                per_class.values().all(|&c| c == 8 / sets_every as usize),
+                "level {level}, sets every {sets_every}: {per_class:?}"
+            );
+        }
+    }
+}
+
 /// The corrections of an advection frame's most corrected level read that level's
 /// quarter-pixel tables, where it uses the projected distance: the finest level when it
 /// is advected (with the default distances, which score the coarser levels with the full

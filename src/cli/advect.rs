@@ -173,12 +173,12 @@ pub struct AdvectArgs {
 
     /// Score the similarity-set candidates on every N-th correction of a pixel on the
     /// most corrected level (the second-finest, the finest with --advect-finest, or the
-    /// advected level above the re-synthesized ones with --resynthesize),
-    /// 1..=16 (1: every correction, as synthesis does by default; 2 is about an eighth
-    /// faster per frame for energies 1-2% higher); with --passes above 1, on every N-th
-    /// pass of a frame
-    #[arg(long, value_name = "N", default_value_t = AdvectOptions::default().sets_every)]
-    pub sets_every: u32,
+    /// advected level above the re-synthesized ones with --resynthesize; with
+    /// --keep-look, every advected level), 1..=16 (1: every correction, as synthesis does
+    /// by default; 2 is about an eighth faster per frame for energies 1-2% higher); with
+    /// --passes above 1, on every N-th pass of a frame [default: 2, 4 with --keep-look]
+    #[arg(long, value_name = "N")]
+    pub sets_every: Option<u32>,
 
     /// Also time every dispatch of each frame (each submitted on its own) and print a
     /// table per level and pass: medians over the frames
@@ -401,7 +401,7 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
         interpolate_sets: args.interpolate_sets,
         quarter_reads: !args.exact_reads,
         skip_coherent: !args.correct_coherent,
-        sets_every: args.sets_every,
+        sets_every: args.sets_every.unwrap_or(preset.sets_every),
         upsample_finest: !args.advect_finest,
         resynthesize: args.resynthesize,
         keep_look: args.keep_look,

@@ -315,7 +315,9 @@ pub struct AdvectOptions {
     /// pixel, 1..=16 (the frames' own [`crate::SynthParams::sets_every`], which frame 0's
     /// synthesis keeps); the other corrections score the coherent candidates only. With
     /// one pass (the default) this spreads over the frames on the most corrected level
-    /// (the coarser advected levels keep their sets); with more, it applies to each
+    /// (the coarser advected levels keep their sets, but with [`Self::keep_look`], where
+    /// every advected level runs all its subpasses every frame, they follow it too);
+    /// with more, it applies to each
     /// frame's passes, the first of which always scores them.
     /// Default 2: measured with the finest level advected (forty-fourth session; 256x256,
     /// vortex, 300 frames, 2 against 1) at energies 1-2%
@@ -392,6 +394,7 @@ impl AdvectOptions {
         Self {
             levels: 4,
             threshold: 0.12,
+            sets_every: 4,
             keep_look: true,
             ..Self::default()
         }
