@@ -227,6 +227,13 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             best_d = projected_distance_at(ns_lo, ns_hi, best);
         }
     }
+    // With the full distance a candidate scores as its nearest texel does: one on the
+    // best one's texel cannot beat it (unless it is coherent and the best is a
+    // similarity-set candidate, which carries the coherence penalty), so its reads are
+    // skipped. Under a turning flow the neighbours' predictions differ by sub-pixel
+    // amounts and land on a few texels.
+    var best_texel = nearest_texel(best);
+    var best_from_set = false;
     let km1 = u32(K - 1);
     for (var dy = -1; dy <= 1; dy++) {
         for (var dx = -1; dx <= 1; dx++) {
@@ -246,6 +253,10 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
                 }
                 let c = fit_coord(raw);
                 if (all(c == best)) {
+                    continue;
+                }
+                if (full && best_d != 0xffffffffu && all(nearest_texel(c) == best_texel)
+                    && (i > 0 || !best_from_set)) {
                     continue;
                 }
                 var dist: u32;
@@ -272,6 +283,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
                 if (dist < best_d) {
                     best_d = dist;
                     best = c;
+                    best_texel = nearest_texel(c);
+                    best_from_set = i > 0;
                 }
             }
         }

@@ -219,6 +219,12 @@ pub fn correct_pixel(
     if is_valid_fx(best, p) {
         best_d = distance(best, true);
     }
+    // With the full distance a candidate scores as its nearest texel does: one on the
+    // best one's texel cannot beat it (unless it is coherent and the best one is a
+    // similarity-set candidate, which carries the coherence penalty), so it is skipped
+    // (the shader saves its reads).
+    let mut best_texel = nearest_texel(best, p);
+    let mut best_from_set = false;
     let km1 = (p.k - 1).max(0) as usize;
     for dy in -1..=1 {
         for dx in -1..=1 {
@@ -240,6 +246,13 @@ pub fn correct_pixel(
                 if c == best {
                     continue;
                 }
+                if full
+                    && best_d != u32::MAX
+                    && nearest_texel(c, p) == best_texel
+                    && (i > 0 || !best_from_set)
+                {
+                    continue;
+                }
                 let mut d = distance(c, i == 0 || p.kset_interp != 0);
                 if i > 0 {
                     d += (d >> 4) * p.coherence;
@@ -247,6 +260,8 @@ pub fn correct_pixel(
                 if d < best_d {
                     best_d = d;
                     best = c;
+                    best_texel = nearest_texel(c, p);
+                    best_from_set = i > 0;
                 }
             }
         }
