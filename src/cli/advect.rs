@@ -74,9 +74,9 @@ pub struct AdvectArgs {
     /// Fade pops in over N frames (0: off): where a pixel's texture changes other than by
     /// moving with the flow (a renewed patch and the detail remade under it), its old
     /// content moves on with the flow and fades out while the new one fades in, with the
-    /// contrast kept. 1 frame trades best: gravel, vortex, --keep-look --fade 1: 7.5x fewer
-    /// pops for a texture energy of x1.18 frame 0's over 300 frames (x1.13 without), and
-    /// about 10 ms more per 512x512 frame on lavapipe. A uniform flow of whole pixels is
+    /// contrast kept. 1 frame trades best: gravel, vortex, --keep-look --fade 1: 7x fewer
+    /// pops for a texture energy of x1.17 frame 0's over 300 frames (x1.12 without), and
+    /// about 12 ms more per 512x512 frame on lavapipe. A uniform flow of whole pixels is
     /// unaffected
     #[arg(
         long,
@@ -89,8 +89,8 @@ pub struct AdvectArgs {
     /// With --fade: how much the jumps around a pixel that jumped must change the colour
     /// on average (of 255, over its 3x3 neighbourhood) for it to fade (0-255). Lower fades
     /// more pops for a higher texture energy (gravel, --keep-look --fade 1, 300 frames of
-    /// the vortex: 40 left 0.13% of the 8x8 blocks popping per frame at a mean texture
-    /// energy of x1.20 frame 0's; 45 0.21% at x1.19; 50 0.38% at x1.17; 55 0.59% at x1.16)
+    /// the vortex: 35 left 0.08% of the 8x8 blocks popping per frame at a mean texture
+    /// energy of x1.20 frame 0's; 40 0.12% at x1.18; 45 0.20% at x1.17)
     #[arg(
         long,
         value_name = "T",

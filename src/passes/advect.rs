@@ -351,10 +351,10 @@ pub struct AdvectOptions {
     /// the frames, instead of changing at once (`passes::fade`). The blend keeps the
     /// contrast (variance-preserving). Coordinates (`read_coords`, the CPU mirror) are not
     /// blended, only the colours; a uniform flow of whole pixels moves the texture as
-    /// exactly as without. One frame trades best: measured (fifty-third session,
+    /// exactly as without. One frame trades best: measured (fifty-fourth session,
     /// lavapipe; 256x256, 300 frames of the default vortex, with [`Self::keep_look`]) the
-    /// 8x8 blocks that pop per frame on gravel 0.21% against 1.58% without, at a texture
-    /// energy at frame 300 of x1.18 frame 0's against x1.13 (blended pixels match no
+    /// 8x8 blocks that pop per frame on gravel 0.20% against 1.41% without, at a texture
+    /// energy at frame 300 of x1.17 frame 0's against x1.12 (blended pixels match no
     /// exemplar neighbourhood); longer fades cost more energy for little (README,
     /// *Advection*). On lavapipe the pass takes about 12 ms of a 512x512 frame, against
     /// 3 ms for the gather it replaces.
@@ -364,8 +364,9 @@ pub struct AdvectOptions {
     /// pixels that did not jump count 0) exceeds this (of 255, `(|dR| + 2 |dG| + |dB|) /
     /// 4`; at most 255; default [`super::fade::FADE_CHANGE`], 45). Lower fades more pops
     /// for a higher texture energy: measured (as for [`Self::fade`], 1-frame fades,
-    /// gravel; the energy's mean over frames 10-300) 40: x1.20, 0.13% of the blocks
-    /// popping; 45: x1.19, 0.21%; 50: x1.17, 0.38%; 55: x1.16, 0.59%.
+    /// gravel; the energy's mean over frames 10-300) 35: x1.20, 0.08% of the blocks
+    /// popping; 40: x1.18, 0.12%; 45: x1.17, 0.20% (fifty-third session's build: 50:
+    /// x1.17, 0.38%; 55: x1.16, 0.59%).
     pub fade_change: u32,
 }
 
@@ -389,7 +390,9 @@ impl AdvectOptions {
     /// against 1.92, pink_marble 1.09 against 1.65, craters 0.97 against 0.92;
     /// flow-warped difference 22-81% higher (27-51% of a resynthesis from scratch's); a
     /// uniform flow of whole pixels moves the texture as exactly as by default; a
-    /// 512x512 frame 38-46% of a whole synthesis against 26-31% (README, *Advection*).
+    /// 512x512 frame 38-46% of a whole synthesis against 26-31% (README, *Advection*);
+    /// since the fifty-fourth session, with the similarity sets on every fourth
+    /// correction (`sets_every: 4`) at every advected level, 23-33% against 25-30%.
     pub fn keep_look() -> Self {
         Self {
             levels: 4,

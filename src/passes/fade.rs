@@ -49,7 +49,9 @@ pub const FADE_JUMP: i32 = 384;
 /// Measured (fifty-third session; gravel, 256x256, 300 frames of the default vortex,
 /// `keep_look`, 1-frame fades; texture energy over frame 0's, mean over frames 10-300, and
 /// the 8x8 blocks changing by 0.15 of full scale per frame): 40 x1.20 and 0.13%, 45 x1.19
-/// and 0.21%, 50 x1.17 and 0.38%, 55 x1.16 and 0.59% (none: x1.13 and 1.58%).
+/// and 0.21%, 50 x1.17 and 0.38%, 55 x1.16 and 0.59% (none: x1.13 and 1.58%). With
+/// `keep_look`'s similarity sets on every fourth correction (fifty-fourth session): 35
+/// x1.20 and 0.08%, 40 x1.18 and 0.12%, 45 x1.17 and 0.20% (none: x1.12 and 1.41%).
 pub const FADE_CHANGE: u32 = 45;
 
 /// Entries of fade state per pixel of the finest level's region.
