@@ -2088,6 +2088,9 @@ pub struct TemporalReport {
     pub warped_diff: Vec<f64>,
     /// The same without warping, for scale (what a static viewer sees change).
     pub unwarped_diff: Vec<f64>,
+    /// Per consecutive pair: the fraction of 8x8 blocks whose mean warped change
+    /// exceeds 0.15 ([`pop_fraction`]): patches that changed at once, popping.
+    pub pops: Vec<f64>,
     /// Texture energy (neighbourhood distance to the exemplar) of the frames it was
     /// computed for, as (frame index, energy).
     pub energy: Vec<(usize, f64)>,
@@ -2105,6 +2108,10 @@ impl TemporalReport {
     /// Mean of [`unwarped_diff`](Self::unwarped_diff) (as for the warped one).
     pub fn mean_unwarped_diff(&self) -> f64 {
         mean(&self.unwarped_diff)
+    }
+    /// Mean of [`pops`](Self::pops) (as for the warped difference).
+    pub fn mean_pops(&self) -> f64 {
+        mean(&self.pops)
     }
 }
 
@@ -2149,17 +2156,41 @@ pub fn high_frequency_energy(img: &FloatImage) -> f64 {
 /// view) or when the two are not valid images of one size, which the means of
 /// [`TemporalReport`] skip.
 pub fn warped_difference(prev: &FloatImage, cur: &FloatImage, d: &[[f32; 2]], margin: u32) -> f64 {
-    // Frames that are not two valid images of one size have no difference: NaN.
+    warped_change_map(prev, cur, d, margin).map_or(f64::NAN, |(diff, _, _)| mean_change(&diff))
+}
+
+/// The mean of a change map's measured pixels (NaN if none).
+fn mean_change(diff: &[f64]) -> f64 {
+    let (mut sum, mut n) = (0.0, 0usize);
+    for v in diff.iter().filter(|v| !v.is_nan()) {
+        sum += v;
+        n += 1;
+    }
+    if n == 0 {
+        return f64::NAN;
+    }
+    sum / n as f64
+}
+
+/// Per pixel, |cur - prev warped by `d`| in grey (0-1), NaN where it cannot be measured
+/// (within `margin` of the border, or warped from outside the frame); with the width and
+/// height. None for frames that are not two valid images of one size.
+fn warped_change_map(
+    prev: &FloatImage,
+    cur: &FloatImage,
+    d: &[[f32; 2]],
+    margin: u32,
+) -> Option<(Vec<f64>, usize, usize)> {
     if prev.validate().is_err()
         || cur.validate().is_err()
         || (prev.width, prev.height) != (cur.width, cur.height)
     {
-        return f64::NAN;
+        return None;
     }
     let (a, b) = (prev.to_grey(), cur.to_grey());
     let (w, h) = (b.width as usize, b.height as usize);
     let m = margin as usize;
-    let (mut sum, mut n) = (0.0, 0usize);
+    let mut out = vec![f64::NAN; w * h];
     for y in m..h.saturating_sub(m) {
         for x in m..w.saturating_sub(m) {
             let v = d.get(y * w + x).copied().unwrap_or([0.0; 2]);
@@ -2175,14 +2206,50 @@ pub fn warped_difference(prev: &FloatImage, cur: &FloatImage, d: &[[f32; 2]], ma
                 + p(x0 + 1, y0) * tx * (1.0 - ty)
                 + p(x0, y0 + 1) * (1.0 - tx) * ty
                 + p(x0 + 1, y0 + 1) * tx * ty;
-            sum += (b.data[y * w + x] as f64 - s).abs();
-            n += 1;
+            out[y * w + x] = (b.data[y * w + x] as f64 - s).abs();
         }
     }
-    if n == 0 {
+    Some((out, w, h))
+}
+
+/// Side of the blocks [`pop_fraction`] looks at, in pixels.
+pub const POP_BLOCK: usize = 8;
+/// The mean warped change (0-1, grey) beyond which [`pop_fraction`] counts a block.
+pub const POP_CHANGE: f64 = 0.15;
+
+/// Popping between two frames: the fraction of the [`POP_BLOCK`]-pixel blocks (a grid
+/// from the top left; only blocks measurable in full, see [`warped_difference`]) whose
+/// mean change from `prev` warped by `d` exceeds [`POP_CHANGE`]. A patch that changes at
+/// once counts where the same change spread thinly over the frame (seams that move) does
+/// not. NaN for frames that are not two valid images of one size or have no such block.
+pub fn pop_fraction(prev: &FloatImage, cur: &FloatImage, d: &[[f32; 2]], margin: u32) -> f64 {
+    warped_change_map(prev, cur, d, margin).map_or(f64::NAN, |(diff, w, h)| block_pops(&diff, w, h))
+}
+
+/// [`pop_fraction`] of a change map.
+fn block_pops(diff: &[f64], w: usize, h: usize) -> f64 {
+    let (mut blocks, mut pops) = (0usize, 0usize);
+    for by in 0..h / POP_BLOCK {
+        for bx in 0..w / POP_BLOCK {
+            let mut sum = 0.0;
+            let mut full = true;
+            for y in by * POP_BLOCK..(by + 1) * POP_BLOCK {
+                for x in bx * POP_BLOCK..(bx + 1) * POP_BLOCK {
+                    let v = diff[y * w + x];
+                    full &= !v.is_nan();
+                    sum += v;
+                }
+            }
+            if full {
+                blocks += 1;
+                pops += (sum / (POP_BLOCK * POP_BLOCK) as f64 > POP_CHANGE) as usize;
+            }
+        }
+    }
+    if blocks == 0 {
         return f64::NAN;
     }
-    sum / n as f64
+    pops as f64 / blocks as f64
 }
 
 /// The temporal figures of `frames` advected by `displacement(t)` (per-pixel motion
@@ -2275,9 +2342,13 @@ impl TemporalFigures {
             .sharpness
             .push(high_frequency_energy(&frame) / self.exemplar_hf);
         if let Some(prev) = &self.prev {
-            self.report
-                .warped_diff
-                .push(warped_difference(prev, &frame, displacement, 4));
+            // One change map for both figures.
+            let (warped, pops) = warped_change_map(prev, &frame, displacement, 4)
+                .map_or((f64::NAN, f64::NAN), |(diff, w, h)| {
+                    (mean_change(&diff), block_pops(&diff, w, h))
+                });
+            self.report.warped_diff.push(warped);
+            self.report.pops.push(pops);
             // An empty displacement reads as zero everywhere.
             self.report
                 .unwarped_diff
@@ -2348,5 +2419,71 @@ mod jacobian_tests {
         };
         let r = jacobian_fidelity(&coords, w, h, [128, 128], [0, 0], &rotated, 0.15).unwrap();
         assert_eq!(r.within_local, 0.0, "{r:?}");
+    }
+}
+
+#[cfg(test)]
+mod pop_tests {
+    use super::*;
+
+    fn grey(w: u32, h: u32, f: impl Fn(u32, u32) -> f32) -> FloatImage {
+        let data = (0..h)
+            .flat_map(|y| (0..w).map(move |x| (x, y)))
+            .map(|(x, y)| f(x, y));
+        FloatImage {
+            width: w,
+            height: h,
+            channels: 1,
+            data: data.collect(),
+        }
+    }
+
+    /// A patch that changes at once pops; the same total change spread thinly does not;
+    /// blocks not measurable in full (the margin) are left out.
+    #[test]
+    fn a_patch_that_changes_at_once_pops() {
+        let (w, h) = (40u32, 32u32);
+        let base = |x: u32, y: u32| ((x * 7 + y * 13) % 10) as f32 / 10.0;
+        let a = grey(w, h, base);
+        assert_eq!(pop_fraction(&a, &a, &[], 0), 0.0);
+        // One 8x8 block (x 16..24, y 8..16) changed: 1 of the 4x3 blocks measurable in
+        // full (the last column and row have no right or lower neighbour to warp from).
+        let b = grey(w, h, |x, y| {
+            let v = base(x, y);
+            if (16..24).contains(&x) && (8..16).contains(&y) {
+                1.0 - v * 0.5
+            } else {
+                v
+            }
+        });
+        assert!((pop_fraction(&a, &b, &[], 0) - 1.0 / 12.0).abs() < 1e-12);
+        // With a margin of 4 the border blocks are not measurable in full: 2 of 3x2.
+        assert!((pop_fraction(&a, &b, &[], 4) - 1.0 / 6.0).abs() < 1e-12);
+        // A one-pixel column changed by 0.9 in every block: a seam, not a pop.
+        let c = grey(w, h, |x, y| {
+            if x % 8 == 3 {
+                1.0 - base(x, y)
+            } else {
+                base(x, y)
+            }
+        });
+        assert_eq!(pop_fraction(&a, &c, &[], 0), 0.0);
+        assert!(warped_difference(&a, &c, &[], 0) > 0.05);
+        // Frames of other sizes have no figure.
+        assert!(pop_fraction(&a, &grey(8, 8, base), &[], 0).is_nan());
+    }
+
+    /// The figures follow the flow: a uniform shift of whole pixels, warped back, changes
+    /// nothing; unwarped, the shifted texture pops everywhere.
+    #[test]
+    fn pops_are_measured_after_warping() {
+        let (w, h) = (32u32, 32u32);
+        let base = |x: u32, y: u32| ((x * 7 + y * 13) % 10) as f32 / 10.0;
+        let a = grey(w, h, base);
+        let b = grey(w, h, |x, y| base(x.wrapping_sub(3) % 1000, y));
+        let d = vec![[3.0f32, 0.0]; (w * h) as usize];
+        assert_eq!(pop_fraction(&a, &b, &d, 0), 0.0);
+        assert_eq!(warped_difference(&a, &b, &d, 0), 0.0);
+        assert!(pop_fraction(&a, &b, &[], 0) > 0.5);
     }
 }

@@ -1489,13 +1489,26 @@ fn audit_findings_fail_cleanly() {
         let name = format!("frame_{i:05}.png");
         std::fs::copy(dir.path("all").join(&name), dir.path("from1").join(&name)).unwrap();
     }
-    let warped = |folder: &str| -> Vec<String> {
+    let figure = |folder: &str, key: &str| -> Vec<String> {
         let json = ok(&dir, &["eval", GRAVEL, folder, "--flow", "gusts:3,0.5"]);
-        let start = json.find("\"warped_diff\":[").unwrap() + 15;
+        assert!(json.contains("\"mean_pops\":"), "{json}");
+        let start = json.find(&format!("\"{key}\":[")).unwrap() + key.len() + 4;
         let end = start + json[start..].find(']').unwrap();
         json[start..end].split(',').map(str::to_string).collect()
     };
-    assert_eq!(warped("all")[1..], warped("from1")[..]);
+    assert_eq!(
+        figure("all", "warped_diff")[1..],
+        figure("from1", "warped_diff")[..]
+    );
+    // The popping too: one figure per pair of frames, each a fraction.
+    let pops = figure("all", "pops");
+    assert_eq!(pops.len(), 3);
+    assert!(
+        pops.iter()
+            .all(|p| (0.0..=1.0).contains(&p.parse::<f64>().unwrap())),
+        "{pops:?}"
+    );
+    assert_eq!(pops[1..], figure("from1", "pops")[..]);
     // The energies are labelled with the frames' own numbers, every K from frame 0.
     let json = ok(
         &dir,

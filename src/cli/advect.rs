@@ -664,6 +664,14 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
             report.mean_unwarped_diff()
         )
     });
+    let pops = report.mean_pops();
+    if pops.is_finite() {
+        ui.info(format!(
+            "popping: {:.2}% of the 8x8 blocks per frame change by more than 0.15 of full \
+             scale on average, warped by the flow",
+            100.0 * pops
+        ));
+    }
     let energies: Vec<String> = report
         .energy
         .iter()

@@ -64,8 +64,10 @@ pub struct EvalArgs {
     /// Temporal coherence of an advected sequence: IMAGE is then a folder of frames
     /// (frame_00000.png, ... as `texsyn advect` writes them, consecutive) advected along
     /// this flow (same SPEC as `texsyn advect --flow`); reports the flow-warped and plain
-    /// frame-to-frame differences, texture energy per --energy-every frames and the
-    /// sharpness (high-frequency energy relative to the exemplar's) per frame
+    /// frame-to-frame differences, the popping (the fraction of 8x8 blocks whose mean
+    /// warped change exceeds 0.15 of full scale, per pair of frames), texture energy per
+    /// --energy-every frames and the sharpness (high-frequency energy relative to the
+    /// exemplar's) per frame
     #[arg(long, value_name = "SPEC", value_parser = super::advect::parse_flow,
           conflicts_with_all = ["coords", "field"])]
     pub flow: Option<super::advect::FlowArg>,
@@ -373,11 +375,13 @@ fn temporal(
         .collect::<Vec<_>>()
         .join(",");
     ui.out(format!(
-        "{{\"frames\":{},\"mean_warped_diff\":{},\"mean_unwarped_diff\":{},\"warped_diff\":[{}],\"energy\":[{}],\"sharpness\":[{}]}}",
+        "{{\"frames\":{},\"mean_warped_diff\":{},\"mean_unwarped_diff\":{},\"mean_pops\":{},\"warped_diff\":[{}],\"pops\":[{}],\"energy\":[{}],\"sharpness\":[{}]}}",
         frames,
         json_number(report.mean_warped_diff()),
         json_number(report.mean_unwarped_diff()),
+        json_number(report.mean_pops()),
         list(&report.warped_diff),
+        list(&report.pops),
         energy,
         list(&report.sharpness)
     ))
