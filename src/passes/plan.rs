@@ -1167,9 +1167,11 @@ impl SynthPlan {
                             // frame. Each pixel has them at every `sets_every`-th
                             // correction. With `keep_look` every advected level runs its
                             // four per frame and follows the same rule (fifty-fourth
-                            // session: the coarser two's corrections 15% cheaper, gravel
-                            // 0.18% pops at a mean x1.17 against 0.21% at x1.19; brick
-                            // and grass alike).
+                            // session, gravel with `--fade 1`: every 2 at all three levels
+                            // 0.18% pops at a mean x1.17 against 0.21% at x1.19 with the
+                            // coarser two scoring every correction; `keep_look()`'s 4,
+                            // 0.20% at x1.17, the coarser corrections about a third
+                            // cheaper; brick and grass alike).
                             let every = frame_plan.params.sets_every as u64;
                             let sets = if upsample_finest {
                                 (subpass + frame).is_multiple_of(every)
