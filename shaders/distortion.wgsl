@@ -38,6 +38,13 @@ fn advected(q: vec2<i32>) -> vec2<i32> {
     return coords[params.flag_base + region_index(q) - params.coord_base];
 }
 
+// (h 256)^2, the squared error of a whole pixel step at spacing h (h capped: step_err
+// is below 2^30 anyway).
+fn seam_step(h: i32) -> u32 {
+    let hc = min(h, 128);
+    return u32(hc * hc) << 16u;
+}
+
 // axis_err's value for an axis with a seam on both sides (step errors stay below 2^30).
 const BETWEEN_SEAMS: u32 = 0xffffffffu;
 
@@ -45,10 +52,58 @@ fn axis_err(q: vec2<i32>, s: vec2<i32>, e: vec2<i32>, expected: vec2<i32>) -> u3
     let fwd = advected(q + e) - s - expected;
     let bwd = s - advected(q - e) - expected;
     let err = min(step_err(fwd), step_err(bwd));
-    // (h 256)^2, a whole pixel step (h capped: step_err is below 2^30 anyway).
-    let hc = min(params.spacing, 128);
-    let seam = u32(hc * hc) << 16u;
-    return select(err, BETWEEN_SEAMS, err > seam);
+    return select(err, BETWEEN_SEAMS, err > seam_step(params.spacing));
+}
+
+// Where a flagged pixel's new coordinate comes from. By default (params.anchor = 0, the
+// paper's scheme) it is upsampled again from the coarser level, which brings content
+// unrelated to what the pixel showed: under a turning flow a renewed patch pops. With
+// anchored renewals (AdvectOptions::anchor_spacing) it continues one of the four anchors
+// around it, the pixels of a grid of spacing B (low byte of params.anchor), along the
+// desired Jacobian: advected(a) + h J (q - a). The pixel then shows nearly what it
+// showed (off by the distortion times its distance to the anchor), but follows J again.
+// Of the four anchors the one whose continuation lands nearest the pixel's own advected
+// coordinate wins (the anchor on its side of a patch seam); if even that one is off by a
+// whole pixel step or more (no anchor in the same patch) the pixel is upsampled. A share
+// of the renewals (params.anchor >> 8, of 256; decided per anchor block and the content
+// it shows) is upsampled anyway: only anchored renewals never bring back the coarse
+// levels' large structures, which then break up at the block edges over hundreds of
+// frames (measured: marble veins, src/passes/advect.rs).
+fn renewal(q: vec2<i32>, i: u32, s: vec2<i32>) -> vec2<i32> {
+    let b = i32((params.anchor | u32(opaque)) & 255u);
+    if (b == 0) {
+        return upsample_at(params.origin + q, i);
+    }
+    let own = min(q / b * b + b / 2, params.size - 1);
+    let key = vec2<u32>(advected(own) >> vec2<u32>(10u));
+    if ((hash32((key.x * 73856093u) ^ (key.y * 19349663u)) & 255u) < (params.anchor >> 8u)) {
+        return upsample_at(params.origin + q, i);
+    }
+    let j = jac_at(i);
+    // The anchors' grid cell that holds q: anchors k0 * b + b / 2 and the next ones
+    // (k0 by floor division: q - b / 2 may be negative).
+    let k0 = (q - b / 2 + 64 * b) / b - 64;
+    // The first nearest continuation, within a whole pixel step.
+    var best = seam_step(params.spacing) + 1u;
+    var pick = vec2<i32>(0);
+    var found = false;
+    for (var k = 0; k < 4; k++) {
+        let a = clamp((k0 + vec2<i32>(k & 1, k >> 1u)) * b + b / 2, vec2<i32>(0), params.size - 1);
+        if (!in_chart(u32(a.y * params.size.x + a.x))) {
+            continue;
+        }
+        let c = fit_coord(advected(a) + scaled_jd(params.spacing, j, q - a));
+        let e = step_err(c - s);
+        if (e < best) {
+            best = e;
+            pick = c;
+            found = true;
+        }
+    }
+    if (!found) {
+        return upsample_at(params.origin + q, i);
+    }
+    return pick;
 }
 
 @compute @workgroup_size(8, 8, 1)
@@ -72,7 +127,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         flag = params.distortion_max != 0xffffffffu && (isolated || err > params.distortion_max);
     }
     if (flag) {
-        coords[i] = upsample_at(params.origin + q, i);
+        coords[i] = renewal(q, i, s);
     } else {
         coords[i] = s;
     }

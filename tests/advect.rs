@@ -242,11 +242,38 @@ fn advection_frames_gpu_match_cpu() {
         adv.read_coords(ctx()).unwrap() == cpu,
         "keep_look: frame 0 differs"
     );
+    // The same without anchored renewals, alongside.
+    let plain = AdvectOptions {
+        anchor_spacing: 0,
+        ..opts
+    };
+    let mut up = Advection::new(ctx(), synth.clone(), &params, plain).unwrap();
+    let mut up_cpu = cpu.clone();
     let v = flows[0].sample(48, 40, 0.0).unwrap();
     assert!(
         step_matches_cpu(&mut adv, &a, 0, &mut cpu, &v, 1.0),
         "keep_look: frame 1 differs"
     );
+    assert!(step_matches_cpu(&mut up, &a, 0, &mut up_cpu, &v, 1.0));
+    // Anchored renewals (keep_look's, half of them upsampled, then all anchored): the
+    // vortex turns the coarsest advected level past its threshold within these frames.
+    // They must match, and change the frames (else the anchored path went untested).
+    for t in 1..6u64 {
+        if t == 3 {
+            let all = AdvectOptions {
+                anchor_upsample: 0.0,
+                ..opts
+            };
+            adv.set_options(ctx(), all).unwrap();
+        }
+        assert!(
+            step_matches_cpu(&mut adv, &a, t, &mut cpu, &v, 2.0),
+            "keep_look, anchored renewals: frame {} differs",
+            t + 1
+        );
+        assert!(step_matches_cpu(&mut up, &a, t, &mut up_cpu, &v, 2.0));
+    }
+    assert!(up_cpu != cpu, "the anchored renewals changed nothing");
     let opts = AdvectOptions::default();
     // The caller-owned GPU velocity path gives the same frame as host velocities.
     let v = Flow::Vortex {
@@ -861,6 +888,28 @@ fn bad_velocities_and_time_steps() {
             },
             "a pop test of 256",
         ),
+        (
+            AdvectOptions {
+                anchor_spacing: 65,
+                ..d
+            },
+            "use a spacing of 0 (off) to 64",
+        ),
+        (
+            AdvectOptions {
+                anchor_spacing: 4,
+                anchor_upsample: f32::NAN,
+                ..d
+            },
+            "an upsampled share of NaN",
+        ),
+        (
+            AdvectOptions {
+                anchor_upsample: 1.5,
+                ..d
+            },
+            "a share of 0 to 1",
+        ),
     ] {
         let e = adv.set_options(ctx(), o).unwrap_err().to_string();
         assert!(e.contains(needle), "{o:?}: {e}");
@@ -1248,6 +1297,9 @@ fn surface_advection_gpu_matches_cpu() {
             keep_look: f >= 3,
             levels: if f >= 2 { 4 } else { o.levels },
             fade: if f >= 4 { 4 } else { 0 },
+            // Anchored renewals on the atlas (anchors outside the charts skipped).
+            anchor_spacing: if f >= 3 { 4 } else { 0 },
+            anchor_upsample: if f == 4 { 0.5 } else { 0.0 },
             ..o
         };
         adv.set_options(ctx(), o).unwrap();

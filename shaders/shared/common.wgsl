@@ -69,7 +69,8 @@ struct Params {
     fade_frames: u32,
     fade_mean: u32,
     fade_change: u32,
-    reserved: u32,
+    // Advection's distortion pass: anchored renewals (distortion.wgsl).
+    anchor: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: Params;

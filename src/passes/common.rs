@@ -134,8 +134,11 @@ pub struct PassParams {
     /// The fade's pop test: how much a jump must change a pixel's colour, of 255
     /// ([`crate::passes::advect::AdvectOptions::fade_change`]).
     pub fade_change: u32,
-    /// Keeps the size a multiple of 8 bytes (the last 8 of the 256-byte stride).
-    pub reserved: u32,
+    /// Advection's distortion pass: anchored renewals (see `distortion.wgsl`): the
+    /// anchors' spacing in the low byte (0: flagged pixels are upsampled from the
+    /// coarser level, the paper's scheme), and above it the share of renewals, of 256,
+    /// upsampled anyway ([`crate::passes::advect::AdvectOptions::anchor_spacing`]).
+    pub anchor: u32,
 }
 
 /// Dynamic uniform offsets must be multiples of this (the WebGPU default limit).

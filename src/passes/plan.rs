@@ -682,7 +682,7 @@ impl SynthPlan {
             fade_frames: 0,
             fade_mean: 0,
             fade_change: 0,
-            reserved: 0,
+            anchor: 0,
         }
     }
 }
@@ -1110,13 +1110,21 @@ impl SynthPlan {
             // The advected coordinates wait in the scratch region; the distortion pass
             // writes them back, and the flagged ones upsampled again from the coarser
             // level (on the coarsest level, which has nothing to upsample from, none is
-            // flagged). One pass where a separate upsampling of the flagged pixels read
+            // flagged; on the coarsest advected level, with anchored renewals, mostly
+            // continued from an anchor instead). One pass where a separate upsampling of the flagged pixels read
             // every pixel's flag: about 5% of a 512x512 frame.
             out.push(Dispatch {
                 kind: PassKind::Distortion,
                 level,
                 params: if level > 0 {
-                    adv
+                    PassParams {
+                        anchor: if level == coarsest {
+                            options.anchor_param()
+                        } else {
+                            0
+                        },
+                        ..adv
+                    }
                 } else {
                     PassParams {
                         distortion_max: u32::MAX,
