@@ -64,7 +64,10 @@ fn axis_err(q: vec2<i32>, s: vec2<i32>, e: vec2<i32>, expected: vec2<i32>) -> u3
 // showed (off by the distortion times its distance to the anchor), but follows J again.
 // Of the four anchors the one whose continuation lands nearest the pixel's own advected
 // coordinate wins (the anchor on its side of a patch seam); if even that one is off by a
-// whole pixel step or more (no anchor in the same patch) the pixel is upsampled. A share
+// whole pixel step or more (no anchor in the same patch) the pixel is upsampled. Only
+// anchors in the chart with the pixel's own desired Jacobian count: along a varying field
+// the flowing content must be turned back all the time, and continuing anchors there
+// popped more than upsampling (measured, src/passes/advect.rs). A share
 // of the renewals (params.anchor >> 8, of 256; decided per anchor block and the content
 // it shows) is upsampled anyway: only anchored renewals never bring back the coarse
 // levels' large structures, which then break up at the block edges over hundreds of
@@ -88,8 +91,14 @@ fn renewal(q: vec2<i32>, i: u32, s: vec2<i32>) -> vec2<i32> {
     var pick = vec2<i32>(0);
     var found = false;
     for (var k = 0; k < 4; k++) {
-        let a = clamp((k0 + vec2<i32>(k & 1, k >> 1u)) * b + b / 2, vec2<i32>(0), params.size - 1);
-        if (!in_chart(u32(a.y * params.size.x + a.x))) {
+        // Anchors outside the region do not count (clamped onto its edge, an edge pixel
+        // would continue itself and never be renewed).
+        let a = (k0 + vec2<i32>(k & 1, k >> 1u)) * b + b / 2;
+        if (any(a < vec2<i32>(0)) || any(a >= params.size)) {
+            continue;
+        }
+        let ta = u32(a.y * params.size.x + a.x);
+        if (!in_chart(ta) || any(jac_at(params.coord_base + ta) != j)) {
             continue;
         }
         let c = fit_coord(advected(a) + scaled_jd(params.spacing, j, q - a));

@@ -62,8 +62,9 @@ pub struct AdvectArgs {
     /// Keep the texture's look under turning and divergent flows: remake the advected
     /// levels below the coarsest one wherever the flow turns or stretches them, and renew
     /// the coarsest where it has turned or stretched by about 5 degrees or 12% (--levels 4
-    /// --threshold 0.12, the coarsest level's threshold here; both can still be given).
-    /// The texture energy stays near frame 0's under a vortex, but the texture is
+    /// --threshold 0.12, the coarsest level's threshold here; both can still be given),
+    /// half of its renewals straightening what it shows rather than replacing it (--anchor
+    /// 4 --anchor-upsample 0.5). The texture energy stays near frame 0's under a vortex, but the texture is
     /// continuously remade as it moves (over tens of frames most of it is new); a uniform
     /// flow still moves it exactly (where the field is constant). Every advected level is
     /// corrected in full every frame (--correct-coherent implied). Without it the texture
@@ -75,8 +76,9 @@ pub struct AdvectArgs {
     /// moving with the flow (a renewed patch and the detail remade under it), its old
     /// content moves on with the flow and fades out while the new one fades in, with the
     /// contrast kept. 1 frame trades best: gravel, vortex, --keep-look --fade 1: 7x fewer
-    /// pops for a texture energy of x1.17 frame 0's over 300 frames (x1.12 without), and
-    /// about 12 ms more per 512x512 frame on lavapipe. A uniform flow of whole pixels is
+    /// pops (0.16% of the 8x8 blocks per frame) for a texture energy of x1.14 frame 0's
+    /// after 300 frames (x1.11 without), and about 12 ms more per 512x512 frame on
+    /// lavapipe. A uniform flow of whole pixels is
     /// unaffected
     #[arg(
         long,
@@ -89,8 +91,9 @@ pub struct AdvectArgs {
     /// With --fade: how much the jumps around a pixel that jumped must change the colour
     /// on average (of 255, over its 3x3 neighbourhood) for it to fade (0-255). Lower fades
     /// more pops for a higher texture energy (gravel, --keep-look --fade 1, 300 frames of
-    /// the vortex: 35 left 0.08% of the 8x8 blocks popping per frame at a mean texture
-    /// energy of x1.20 frame 0's; 40 0.12% at x1.18; 45 0.20% at x1.17)
+    /// the vortex, before anchored renewals: 35 left 0.08% of the 8x8 blocks popping per
+    /// frame at a mean texture energy of x1.20 frame 0's; 40 0.12% at x1.18; 45 0.20% at
+    /// x1.17)
     #[arg(
         long,
         value_name = "T",
