@@ -242,38 +242,42 @@ fn advection_frames_gpu_match_cpu() {
         adv.read_coords(ctx()).unwrap() == cpu,
         "keep_look: frame 0 differs"
     );
-    // The same without anchored renewals, alongside.
-    let plain = AdvectOptions {
-        anchor_spacing: 0,
+    // The same with anchored renewals (half of them upsampled, then all anchored),
+    // alongside: the vortex turns the coarsest advected level past its threshold
+    // within these frames. They must match, and change the frames (else the anchored
+    // path went untested).
+    let anchored = AdvectOptions {
+        anchor_spacing: 4,
+        anchor_upsample: 0.5,
         ..opts
     };
-    let mut up = Advection::new(ctx(), synth.clone(), &params, plain).unwrap();
-    let mut up_cpu = cpu.clone();
+    let mut an = Advection::new(ctx(), synth.clone(), &params, anchored).unwrap();
+    let mut an_cpu = cpu.clone();
     let v = flows[0].sample(48, 40, 0.0).unwrap();
     assert!(
         step_matches_cpu(&mut adv, &a, 0, &mut cpu, &v, 1.0),
         "keep_look: frame 1 differs"
     );
-    assert!(step_matches_cpu(&mut up, &a, 0, &mut up_cpu, &v, 1.0));
-    // Anchored renewals (keep_look's, half of them upsampled, then all anchored): the
-    // vortex turns the coarsest advected level past its threshold within these frames.
-    // They must match, and change the frames (else the anchored path went untested).
+    assert!(
+        step_matches_cpu(&mut an, &a, 0, &mut an_cpu, &v, 1.0),
+        "keep_look, anchored renewals: frame 1 differs"
+    );
     for t in 1..6u64 {
         if t == 3 {
             let all = AdvectOptions {
                 anchor_upsample: 0.0,
-                ..opts
+                ..anchored
             };
-            adv.set_options(ctx(), all).unwrap();
+            an.set_options(ctx(), all).unwrap();
         }
         assert!(
-            step_matches_cpu(&mut adv, &a, t, &mut cpu, &v, 2.0),
+            step_matches_cpu(&mut an, &a, t, &mut an_cpu, &v, 2.0),
             "keep_look, anchored renewals: frame {} differs",
             t + 1
         );
-        assert!(step_matches_cpu(&mut up, &a, t, &mut up_cpu, &v, 2.0));
+        assert!(step_matches_cpu(&mut adv, &a, t, &mut cpu, &v, 2.0));
     }
-    assert!(up_cpu != cpu, "the anchored renewals changed nothing");
+    assert!(an_cpu != cpu, "the anchored renewals changed nothing");
     let opts = AdvectOptions::default();
     // The caller-owned GPU velocity path gives the same frame as host velocities.
     let v = Flow::Vortex {

@@ -62,9 +62,8 @@ pub struct AdvectArgs {
     /// Keep the texture's look under turning and divergent flows: remake the advected
     /// levels below the coarsest one wherever the flow turns or stretches them, and renew
     /// the coarsest where it has turned or stretched by about 5 degrees or 12% (--levels 4
-    /// --threshold 0.12, the coarsest level's threshold here; both can still be given),
-    /// half of its renewals straightening what it shows rather than replacing it (--anchor
-    /// 4 --anchor-upsample 0.5). The texture energy stays near frame 0's under a vortex, but the texture is
+    /// --threshold 0.12, the coarsest level's threshold here; both can still be given).
+    /// The texture energy stays near frame 0's under a vortex, but the texture is
     /// continuously remade as it moves (over tens of frames most of it is new); a uniform
     /// flow still moves it exactly (where the field is constant). Every advected level is
     /// corrected in full every frame (--correct-coherent implied). Without it the texture
@@ -76,9 +75,8 @@ pub struct AdvectArgs {
     /// moving with the flow (a renewed patch and the detail remade under it), its old
     /// content moves on with the flow and fades out while the new one fades in, with the
     /// contrast kept. 1 frame trades best: gravel, vortex, --keep-look --fade 1: 7x fewer
-    /// pops (0.16% of the 8x8 blocks per frame) for a texture energy of x1.14 frame 0's
-    /// after 300 frames (x1.11 without), and about 12 ms more per 512x512 frame on
-    /// lavapipe. A uniform flow of whole pixels is
+    /// pops for a texture energy of x1.17 frame 0's over 300 frames (x1.12 without), and
+    /// about 12 ms more per 512x512 frame on lavapipe. A uniform flow of whole pixels is
     /// unaffected
     #[arg(
         long,
@@ -91,9 +89,8 @@ pub struct AdvectArgs {
     /// With --fade: how much the jumps around a pixel that jumped must change the colour
     /// on average (of 255, over its 3x3 neighbourhood) for it to fade (0-255). Lower fades
     /// more pops for a higher texture energy (gravel, --keep-look --fade 1, 300 frames of
-    /// the vortex, before anchored renewals: 35 left 0.08% of the 8x8 blocks popping per
-    /// frame at a mean texture energy of x1.20 frame 0's; 40 0.12% at x1.18; 45 0.20% at
-    /// x1.17)
+    /// the vortex: 35 left 0.08% of the 8x8 blocks popping per frame at a mean texture
+    /// energy of x1.20 frame 0's; 40 0.12% at x1.18; 45 0.20% at x1.17)
     #[arg(
         long,
         value_name = "T",
@@ -102,22 +99,32 @@ pub struct AdvectArgs {
     )]
     pub fade_change: u32,
 
-    /// Anchored renewals (0: off): where the coarsest advected level is renewed, a pixel
-    /// continues the nearest-landing of the anchors around it (a grid of this spacing)
-    /// straightened along the field, instead of being upsampled from the coarser level,
-    /// so it keeps nearly what it showed instead of popping [default: 0, 4 with
-    /// --keep-look]
-    #[arg(long, value_name = "SPACING", allow_hyphen_values = true)]
-    pub anchor: Option<u32>,
+    /// Anchored renewals (0: off; 4 measured best): where the coarsest advected level is
+    /// renewed, a pixel continues the nearest-landing of the anchors around it (a grid of
+    /// this spacing) straightened along the field, instead of being upsampled from the
+    /// coarser level, so it keeps nearly what it showed instead of popping. For textures
+    /// without long structures: gravel, --keep-look, 300 frames of the vortex: 1.09% of
+    /// the 8x8 blocks popping per frame against 1.61%, with --fade 1 0.16% against 0.24%,
+    /// at the same mean energy; the marble's energy rises (mean x1.14 against x1.09)
+    #[arg(
+        long,
+        value_name = "SPACING",
+        default_value_t = 0,
+        allow_hyphen_values = true
+    )]
+    pub anchor: u32,
 
     /// With --anchor: the share of the renewals (0-1) upsampled from the coarser level
     /// anyway. Anchored renewals never bring back the coarse levels' large structures,
     /// which break up over hundreds of frames (marble veins) without some; lower pops
-    /// less (gravel, --keep-look, 300 frames of the vortex: 0 left 0.60% of the 8x8
-    /// blocks popping per frame, 0.5 1.08%, upsampling all 1.61%) [default: 0, 0.5 with
-    /// --keep-look]
-    #[arg(long, value_name = "SHARE", allow_hyphen_values = true)]
-    pub anchor_upsample: Option<f32>,
+    /// less (gravel as above: 0 left 0.63% popping, 0.5 1.09%)
+    #[arg(
+        long,
+        value_name = "SHARE",
+        default_value_t = 0.5,
+        allow_hyphen_values = true
+    )]
+    pub anchor_upsample: f32,
 
     /// Levels each frame works on (the finest ones): the finest is upsampled from the
     /// others, which are advected (with --advect-finest, all are advected; with
@@ -427,8 +434,8 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
         keep_look: args.keep_look,
         fade: args.fade,
         fade_change: args.fade_change,
-        anchor_spacing: args.anchor.unwrap_or(preset.anchor_spacing),
-        anchor_upsample: args.anchor_upsample.unwrap_or(preset.anchor_upsample),
+        anchor_spacing: args.anchor,
+        anchor_upsample: args.anchor_upsample,
     };
     options.check()?;
     // The temporal figures printed at the end use 5x5 windows: refuse what they cannot

@@ -437,14 +437,20 @@ pub struct AdvectOptions {
     /// varying one (`swirl`, an atlas) the content must be turned back all the time as it
     /// flows through the field, and continuing anchors there popped more than upsampling
     /// (gravel, `swirl` field, 100 frames: 5.2% of the blocks against 3.5%; bunny atlas
-    /// 15.2% against 11.5%); with the rule 3.3% and 11.0%, and `rotate:30` 1.35% against
-    /// 1.99%. See [`Self::anchor_upsample`] for why
+    /// 15.2% against 11.5%); with the rule 3.2% and 9.9%, and under constant fields
+    /// `rotate:30` 1.33% against 1.99%, `scale:2` 1.59% against 2.12%. See [`Self::anchor_upsample`] for why
     /// some renewals still should be. Measured (fifty-fifth session, lavapipe; 256x256,
     /// 300 frames of the default vortex, [`Self::keep_look`], gravel; pops are 8x8
     /// blocks changing by more than 0.15 per frame, energy the mean over frames 10-300
-    /// of frame 0's): spacing 4 (all anchored) 0.60% pops at x1.11 against 1.61% at x1.12
-    /// upsampled; spacing 8 0.96% at x1.09; with `fade: 1` spacing 4 0.10% at x1.14 and
-    /// spacing 8 0.16% at x1.12, against 0.24% at x1.16.
+    /// of frame 0's): spacing 4 0.63% pops at x1.12 all anchored, 1.09% at x1.12 half
+    /// anchored, against 1.61% at x1.12 upsampled; with `fade: 1` 0.11% at x1.15 and
+    /// 0.16% at x1.16 against 0.24% at x1.16 (brick 0.05% against 0.09%, grass 0.21%
+    /// against 0.26%, at about the same energies). An earlier form at spacing 8 (all
+    /// anchored, anchors clamped onto the region's edge) measured 0.96% at x1.09. The
+    /// marble's energy rises, half anchored: mean x1.14 against x1.09, frame 300 x1.27
+    /// against x1.10 (its energy swings by 20% from frame to frame either way), so
+    /// [`Self::keep_look()`] leaves this off. The cost is the same (the coarsest advected
+    /// level is an eighth of the output's side).
     pub anchor_spacing: u32,
     /// With [`Self::anchor_spacing`]: the share of the renewals (0 to 1) upsampled from
     /// the coarser level anyway, decided per anchor block and the content it shows.
@@ -452,8 +458,8 @@ pub struct AdvectOptions {
     /// large structures, which break at the anchor blocks' edges and are never made
     /// whole again: measured on pink_marble over 900 frames (as for `anchor_spacing`),
     /// all anchored at spacing 4, its veins broke into short pieces (sharpness after
-    /// frame 300 0.77 against 1.07 upsampled), half anchored (0.5) they kept
-    /// (1.04), gravel then 1.08% pops at x1.12.
+    /// frame 300 0.77 against 1.07 upsampled; an earlier form, anchors clamped onto the
+    /// region's edge), half anchored (0.5, the default) they kept (1.05).
     pub anchor_upsample: f32,
 }
 
@@ -482,18 +488,14 @@ impl AdvectOptions {
     /// 512x512 frame 38-46% of a whole synthesis against 26-31% (README, *Advection*);
     /// since the fifty-fourth session, with the similarity sets on every fourth
     /// correction (`sets_every: 4`) at every advected level, 23-33% against 25-30%.
-    /// Since the fifty-fifth, half of the coarsest level's renewals are anchored
-    /// ([`Self::anchor_spacing`] 4, [`Self::anchor_upsample`] 0.5): gravel 1.08% of the
-    /// 8x8 blocks popping per frame against 1.61%, brick 0.05% against 0.09%, at about
-    /// the same energies, for the same cost.
+    /// Anchored renewals ([`Self::anchor_spacing`]) pop less with it on the stochastic
+    /// textures but stay off here: they raise the marble's energy (see there).
     pub fn keep_look() -> Self {
         Self {
             levels: 4,
             threshold: 0.12,
             sets_every: 4,
             keep_look: true,
-            anchor_spacing: 4,
-            anchor_upsample: 0.5,
             ..Self::default()
         }
     }
@@ -650,7 +652,7 @@ impl Default for AdvectOptions {
             fade: 0,
             fade_change: super::fade::FADE_CHANGE,
             anchor_spacing: 0,
-            anchor_upsample: 0.0,
+            anchor_upsample: 0.5,
         }
     }
 }
