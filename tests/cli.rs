@@ -1293,6 +1293,29 @@ fn review_findings_fail_cleanly() {
         1,
         "sets every",
     );
+    for (spacing, share, needle) in [
+        ("65", "0.5", "spacing of 0 (off) to 64"),
+        ("4", "1.5", "share of 0 to 1"),
+        ("4", "NaN", "share of NaN"),
+    ] {
+        fails(
+            &dir,
+            &[
+                "advect",
+                GRAVEL,
+                "--flow",
+                "vortex",
+                "--anchor",
+                spacing,
+                "--anchor-upsample",
+                share,
+                "-o",
+                "frames",
+            ],
+            1,
+            needle,
+        );
+    }
     // PIDs never exceed 2^22 on Linux: this staging folder belongs to no live process.
     std::fs::create_dir(dir.path(".frames.partial-4194305")).unwrap();
     ok(
