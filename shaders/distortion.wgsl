@@ -16,7 +16,8 @@
 // nothing (level 0, the pyramid's coarsest, which has nothing to upsample from).
 // Reads the advected coordinates from the scratch region (flag_base) and writes them
 // back to the level, flagged pixels upsampled again from the coarser level
-// (upsample_at, shared with upsample_aniso.wgsl; it reads only the coarser level).
+// (upsample_at, shared with upsample_aniso.wgsl; it reads only the coarser level) or,
+// with anchored renewals, continued from an anchor (renewal(), below).
 #include "shared/common.wgsl"
 #include "shared/aniso.wgsl"
 

@@ -7,8 +7,9 @@
 //! flow (a uniform flow of whole pixels translates it exactly, seams included); where the
 //! advected coordinates no longer follow the desired Jacobian (`|J_obs - J|_F > c`,
 //! divergent or shearing flows stretch them; steps off by a whole pixel on both sides
-//! are seams, not distortion) the pixel is upsampled again from the coarser level; then
-//! the usual correction passes run.
+//! are seams, not distortion) the pixel is upsampled again from the coarser level (or,
+//! with anchored renewals on the coarsest advected level, continues a nearby anchor
+//! straightened along `J`); then the usual correction passes run.
 
 use super::common::{fit_coord, region_index, scaled_jd, wrap, PassParams};
 use super::fill::in_chart;
@@ -195,7 +196,8 @@ pub fn flagged(
 
 /// Mirror of `distortion.wgsl`: writes the advected coordinates from the scratch region
 /// back to the level, and in place of the [`flagged`] ones their upsampling from the
-/// coarser level ([`super::upsample_aniso::upsample_pixel`]; it reads only that level).
+/// coarser level ([`super::upsample_aniso::upsample_pixel`]; it reads only that level) or
+/// their anchored renewal (`renewal`).
 pub fn distortion(p: &PassParams, coords: &mut [[i32; 2]], jac: &[[i32; 4]], surface: &[u32]) {
     let base = p.coord_base as usize;
     let scratch = p.flag_base as usize;

@@ -1111,8 +1111,8 @@ impl SynthPlan {
             // writes them back, and the flagged ones upsampled again from the coarser
             // level (on the coarsest level, which has nothing to upsample from, none is
             // flagged; on the coarsest advected level, with anchored renewals, mostly
-            // continued from an anchor instead). One pass where a separate upsampling of the flagged pixels read
-            // every pixel's flag: about 5% of a 512x512 frame.
+            // continued from an anchor instead). One pass where a separate upsampling of
+            // the flagged pixels read every pixel's flag: about 5% of a 512x512 frame.
             out.push(Dispatch {
                 kind: PassKind::Distortion,
                 level,
