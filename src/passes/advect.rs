@@ -435,13 +435,14 @@ pub struct AdvectOptions {
     /// what it showed, only turned or stretched back, where an upsampling brings unrelated
     /// content: a renewed patch no longer pops. Pixels no anchor continues (another
     /// patch, outside the chart, or where the desired Jacobian differs between the anchor
-    /// and the pixel) are upsampled. The last keeps them to constant fields: along a
-    /// varying one (`swirl`, an atlas) the content must be turned back all the time as it
-    /// flows through the field, and continuing anchors there popped more than upsampling
-    /// (gravel, `swirl` field, 100 frames: 5.2% of the blocks against 3.5%; bunny atlas
-    /// 15.2% against 11.5%); with the rule 3.2% and 9.9%, and under constant fields
-    /// `rotate:30` 1.33% against 1.99%, `scale:2` 1.59% against 2.12%. See [`Self::anchor_upsample`] for why
-    /// some renewals still should be. Measured (fifty-fifth session, lavapipe; 256x256,
+    /// and the pixel) are upsampled, and so is a share of the others
+    /// ([`Self::anchor_upsample`]). The Jacobian rule keeps anchors to constant fields:
+    /// along a varying one (`swirl`, an atlas) the content must be turned back all the
+    /// time as it flows through the field, and continuing anchors there popped more than
+    /// upsampling (gravel, `swirl` field, 100 frames: 5.2% of the blocks against 3.5%;
+    /// bunny atlas 15.2% against 11.5%); with the rule 3.2% and 9.9%, and under constant
+    /// fields `rotate:30` 1.33% against 1.99%, `scale:2` 1.59% against 2.12%. Measured
+    /// (fifty-fifth session, lavapipe; 256x256,
     /// 300 frames of the default vortex, [`Self::keep_look`], gravel; pops are 8x8
     /// blocks changing by more than 0.15 per frame, energy the mean over frames 10-300
     /// of frame 0's): spacing 4 0.63% pops at x1.12 all anchored, 1.09% at x1.12 half
