@@ -1,8 +1,10 @@
 //! A host application's frame loop driving texture advection on its own wgpu device:
 //! the application owns the device, the queue and a GPU velocity buffer it updates
-//! every frame (here a vortex whose speed changes over time); texsyn records each frame
-//! into the application's command encoder and leaves the texture on the GPU. Nothing is
-//! read back except the frames this example saves to show the result.
+//! every frame (here a vortex whose speed changes over time) and its own, uneven, time
+//! steps; texsyn records each frame into the application's command encoder and leaves
+//! the texture on the GPU. Halfway the application changes the options (keeping the
+//! look) and the parameters (less randomness, more coherence) without starting over.
+//! Nothing is read back except the frames this example saves to show the result.
 //!
 //! ```text
 //! cargo run --release --example advect [OUT_DIR]      # default: the current directory
@@ -55,8 +57,9 @@ fn main() -> texsyn::Result<()> {
         seed: 4,
         ..SynthParams::default()
     };
-    // `AdvectOptions::keep_look()` would keep the texture's look under the vortex by
-    // remaking it as it turns; the default advects it (README, *Advection*).
+    // The default advects the texture (it turns with the vortex and slowly breaks up);
+    // from frame 31 `AdvectOptions::keep_look()` keeps its look by remaking it as it
+    // turns (README, *Advection*).
     let mut advection = Advection::new(&ctx, synthesizer, &params, AdvectOptions::default())?;
 
     // The application's velocity buffer (vec2<f32> per pixel), updated every frame.
@@ -67,6 +70,20 @@ fn main() -> texsyn::Result<()> {
         mapped_at_creation: false,
     });
     for frame in 1..=60u32 {
+        if frame == 31 {
+            advection.set_options(&ctx, AdvectOptions::keep_look())?;
+            // Less randomness (larger patches, more repeats) and more coherence. The
+            // frames do not jitter: the levels above the advected ones are made again
+            // with the new parameters, and the texture takes them on where the frames
+            // renew it.
+            advection.set_params(&SynthParams {
+                randomness: vec![0.7],
+                coherence: 1.0,
+                ..params.clone()
+            })?;
+        }
+        // The host's frame time, in units of the velocities' time.
+        let dt = if frame % 2 == 0 { 1.25 } else { 0.75 };
         let omega = 0.02 * (frame as f32 * 0.1).sin();
         let v = Flow::Vortex {
             cx: 0.5,
@@ -77,7 +94,7 @@ fn main() -> texsyn::Result<()> {
         ctx.queue
             .write_buffer(&velocity, 0, bytemuck::cast_slice(&v));
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
-        advection.encode_step(&ctx, &mut encoder, &velocity, 1.0)?;
+        advection.encode_step(&ctx, &mut encoder, &velocity, dt)?;
         // ... the application would record its own rendering here, sampling
         // advection.texture() ...
         ctx.queue.submit([encoder.finish()]);

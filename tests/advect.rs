@@ -98,10 +98,13 @@ fn step_matches_cpu(
     v: &[[f32; 2]],
     dt: f32,
 ) -> bool {
+    assert_eq!(adv.frame(), frame);
+    // The advection's own schedule: after a change of parameters or analysis it first
+    // makes the levels above the advected ones again.
+    let schedule = adv.frame_schedule();
     adv.step(ctx(), v, dt).unwrap();
     let plan = adv.plan();
     let q: Vec<[i32; 2]> = v.iter().map(|&v| quantize_velocity(v, dt)).collect();
-    let schedule = plan.advect_schedule(a, &adv.options(), frame);
     run_cpu_frame(a, &schedule, cpu, &plan.jacobians(), &[], &q);
     adv.read_coords(ctx()).unwrap() == cpu
 }
@@ -213,18 +216,16 @@ fn advection_frames_gpu_match_cpu() {
             .unwrap();
         }
         let plan = adv.plan().clone();
+        let schedule = adv.frame_schedule();
+        assert_eq!(
+            schedule.len() > plan.advect_schedule(&a, &o, f as u64).len(),
+            f == 3,
+            "the levels above the advected ones are made again after set_params only"
+        );
         let v = flow.sample(48, 40, f as f32).unwrap();
         adv.step(ctx(), &v, 1.5).unwrap();
         let q: Vec<[i32; 2]> = v.iter().map(|&v| quantize_velocity(v, 1.5)).collect();
-        let out = run_cpu_frame(
-            &a,
-            &plan.advect_schedule(&a, &o, f as u64),
-            &mut cpu,
-            &jac,
-            &[],
-            &q,
-        )
-        .unwrap();
+        let out = run_cpu_frame(&a, &schedule, &mut cpu, &jac, &[], &q).unwrap();
         assert!(
             adv.read_coords(ctx()).unwrap() == cpu,
             "frame {} ({flow:?}) differs",
@@ -742,6 +743,73 @@ fn vortex_does_not_blur_grass() {
         sharp300 > 0.9 * exemplar_sharpness && sharp300 > 0.8 * sharp0,
         "blurred: sharpness {sharp0} -> {sharp300}, exemplar {exemplar_sharpness}"
     );
+}
+
+/// The "synthesis parameters (randomness, ...) may change between frames". The
+/// frames do not jitter, so a new seed or randomness acts through the levels above the
+/// advected ones: the frame after `set_params` makes them again (GPU = CPU), as a new
+/// advection with those parameters makes them, and the texture takes them on where the
+/// frames renew it. Setting the same parameters again remakes nothing.
+#[test]
+fn a_new_seed_between_frames_reaches_the_texture() {
+    let (a, synth, _) = setup(32);
+    let (params, v) = centred_vortex(64, 64, 0.05);
+    let opts = AdvectOptions::keep_look();
+    let reseeded = SynthParams {
+        seed: params.seed + 1,
+        randomness: vec![0.8],
+        ..params.clone()
+    };
+    let mut changed = Advection::new(ctx(), synth.clone(), &params, opts).unwrap();
+    let mut kept = Advection::new(ctx(), synth.clone(), &params, opts).unwrap();
+    let fresh = Advection::new(ctx(), synth.clone(), &reseeded, opts).unwrap();
+    for adv in [&mut changed, &mut kept] {
+        adv.step(ctx(), &v, 1.0).unwrap();
+    }
+    changed.set_params(&reseeded).unwrap();
+    kept.set_params(&params).unwrap();
+    let frame = kept.plan().advect_schedule(&a, &opts, 1);
+    assert_eq!(kept.frame_schedule().len(), frame.len());
+    assert!(changed.frame_schedule().len() > frame.len());
+    let mut cpu = changed.read_coords(ctx()).unwrap();
+    assert!(
+        step_matches_cpu(&mut changed, &a, 1, &mut cpu, &v, 1.0),
+        "the frame after set_params differs from the CPU mirror"
+    );
+    kept.step(ctx(), &v, 1.0).unwrap();
+    let plan = changed.plan().clone();
+    let coarsest = plan.levels.len() - opts.levels as usize;
+    assert!(coarsest > 0, "no level above the advected ones");
+    let (c, f, k) = (
+        changed.read_coords(ctx()).unwrap(),
+        fresh.read_coords(ctx()).unwrap(),
+        kept.read_coords(ctx()).unwrap(),
+    );
+    let mut moved = 0;
+    for l in &plan.levels[..coarsest] {
+        let r = l.coord_base as usize..(l.coord_base + l.size[0] * l.size[1]) as usize;
+        assert!(c[r.clone()] == f[r.clone()], "level {} differs", l.level);
+        moved += c[r.clone()]
+            .iter()
+            .zip(&k[r])
+            .filter(|(x, y)| x != y)
+            .count();
+    }
+    assert!(moved > 0, "the new seed changed no coarse coordinate");
+    // Then the vortex renews the advected levels from them: the frames part from those
+    // of the advection that kept its seed.
+    let differing = |x: &Advection, y: &Advection| {
+        let (p, q) = (x.read_rgba8(ctx()).unwrap(), y.read_rgba8(ctx()).unwrap());
+        p.chunks(4).zip(q.chunks(4)).filter(|(s, t)| s != t).count() as f64 / (64.0 * 64.0)
+    };
+    let first = differing(&changed, &kept);
+    for _ in 0..10 {
+        for adv in [&mut changed, &mut kept] {
+            adv.step(ctx(), &v, 1.0).unwrap();
+        }
+    }
+    let later = differing(&changed, &kept);
+    assert!(later > 0.5 && later >= first, "{first} -> {later}");
 }
 
 #[test]

@@ -56,6 +56,9 @@ pub struct Advection {
     /// next frame (or read) copies into `coords` first: in the frame's own encoder, so
     /// that a frame recorded by [`Self::encode_step`] but not yet submitted is not lost.
     grow_from: Option<wgpu::Buffer>,
+    /// Whether the next frame first makes the levels above the advected ones again
+    /// ([`SynthPlan::advect_static_schedule`]): the parameters or the analysis changed.
+    remake_static: bool,
 }
 
 impl Advection {
@@ -187,6 +190,7 @@ impl Advection {
             frame: 0,
             fade_state: options.fade > 0,
             grow_from: None,
+            remake_static: false,
         };
         let schedule = this
             .plan
@@ -280,6 +284,14 @@ impl Advection {
     /// must the regions each level computes, which the correction passes' margins set
     /// (a change of `passes`, `second_finest_passes` or `finest_passes` that moves them
     /// is refused).
+    ///
+    /// Coherence, distance and field act on the next frame's corrections (a field also
+    /// on its distortion test). The frames do not jitter, so a new seed or randomness
+    /// acts through the levels above the advected ones: any change of parameters makes
+    /// them again, as frame 0 made them, before the next frame, and the advected levels
+    /// take the new content where they are renewed (upsampled from them: under a turning
+    /// flow with [`AdvectOptions::keep_look`] within some ten frames; where a uniform flow
+    /// brings texture into view; nowhere when every level is advected).
     pub fn set_params(&mut self, params: &SynthParams) -> Result<()> {
         let params = Self::synthesis_params(params);
         let plan = SynthPlan::with_torus(self.synthesizer.analysis(), &params, false)?;
@@ -291,6 +303,9 @@ impl Advection {
                     .into(),
             ));
         }
+        if params != self.params {
+            self.remake_static = true;
+        }
         self.params = params;
         self.plan = plan;
         Ok(())
@@ -301,8 +316,9 @@ impl Advection {
     /// another feature weight or mask (`AnalysisOptions::feature_weight`), another
     /// appearance space, or another exemplar altogether. The coordinates carry over (they
     /// are exemplar positions), and the next frames correct them against the new
-    /// appearance; the size, window or atlas and the levels' regions stay (refused
-    /// otherwise, as in [`Self::set_params`]). The analysis is the slow part (build it
+    /// appearance, and the levels above the advected ones are made again against it
+    /// first (as [`Self::set_params`] makes them); the size, window or atlas and the
+    /// levels' regions stay (refused otherwise, as in [`Self::set_params`]). The analysis is the slow part (build it
     /// ahead, e.g. one per weight a host wants to blend through); the swap itself only
     /// checks and, where the frames read them, builds the new analysis's quarter-pixel
     /// tables.
@@ -352,6 +368,9 @@ impl Advection {
                 synthesizer.fine_tables(ctx, level);
             }
         })?;
+        if !Arc::ptr_eq(&self.synthesizer, &synthesizer) {
+            self.remake_static = true;
+        }
         self.synthesizer = synthesizer;
         self.plan = plan;
         Ok(())
@@ -469,12 +488,21 @@ impl Advection {
     }
 
     /// The dispatches of the next frame ([`SynthPlan::advect_schedule`] for the current
-    /// frame and options; a fade that has no state yet starts every pixel unfaded), as
-    /// the CPU mirror ([`crate::passes::run_cpu_frame`]) runs them.
+    /// frame and options, after [`SynthPlan::advect_static_schedule`] where the
+    /// parameters or the analysis changed since the last frame; a fade that has no state
+    /// yet starts every pixel unfaded), as the CPU mirror
+    /// ([`crate::passes::run_cpu_frame`]) runs them.
     pub fn frame_schedule(&self) -> Vec<Dispatch> {
-        let mut schedule =
+        let analysis = self.synthesizer.analysis();
+        let mut schedule = if self.remake_static {
+            self.plan.advect_static_schedule(analysis, &self.options)
+        } else {
+            Vec::new()
+        };
+        schedule.extend(
             self.plan
-                .advect_schedule(self.synthesizer.analysis(), &self.options, self.frame);
+                .advect_schedule(analysis, &self.options, self.frame),
+        );
         if !self.fade_state {
             // No fade state yet (fading just turned on): every pixel starts unfaded.
             for d in schedule.iter_mut().filter(|d| d.kind == PassKind::Fade) {
@@ -488,6 +516,7 @@ impl Advection {
     fn frame_done(&mut self) {
         self.frame += 1;
         self.fade_state = self.options.fade > 0;
+        self.remake_static = false;
     }
 
     /// [`Self::step`] for profiling: each dispatch of the frame is submitted and waited

@@ -1284,6 +1284,24 @@ impl SynthPlan {
         s
     }
 
+    /// The dispatches that make the levels above the advected ones (which the frames
+    /// only read: renewed pixels are upsampled from them) again, as frame 0 made them
+    /// ([`Self::advect_first_schedule`]); none where every level is advected.
+    /// [`crate::gpu::advect::Advection`] runs them before the frame after a change of
+    /// parameters (a new seed or randomness acts nowhere else: the frames do not jitter)
+    /// or of analysis.
+    pub fn advect_static_schedule(
+        &self,
+        analysis: &Analysis,
+        options: &super::advect::AdvectOptions,
+    ) -> Vec<Dispatch> {
+        let n = self.levels.len();
+        let coarsest = n - options.levels.clamp(1, n);
+        let mut s = self.schedule_inner(analysis, false, false);
+        s.retain(|d| d.level < coarsest);
+        s
+    }
+
     /// Every dispatch of the synthesis, in order.
     pub fn schedule(&self, analysis: &Analysis) -> Vec<Dispatch> {
         self.schedule_with(analysis, true)
