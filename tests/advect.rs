@@ -1396,6 +1396,37 @@ fn surface_advection_gpu_matches_cpu() {
     let ok = texsyn::surface::flow::atlas_velocity_from_vertices(&prep, &vec![glam::Vec3::X; n])
         .unwrap();
     assert_eq!(ok.len(), 64 * 64);
+    // Vectors per vertex of the mesh given to `prepare` (a torus, whose vertices the
+    // atlas splits where its charts are cut): carried onto the atlas mesh's vertices,
+    // they give the same field as the same function of position given per atlas vertex.
+    let mut torus = texsyn::surface::Mesh::torus(1.0, 0.4, 16, 8);
+    torus.validate_and_repair().unwrap();
+    let prep = texsyn::surface::pipeline::prepare(&torus, a.levels.len(), &opts).unwrap();
+    let n = prep.atlas.mesh.positions.len();
+    assert!(n > torus.positions.len(), "no vertex was split");
+    let swirl = |p: &glam::Vec3| glam::Vec3::new(-p.z, 0.25 * p.x, p.x + p.y);
+    let from_mesh = texsyn::surface::flow::atlas_velocity_from_mesh_vertices(
+        &prep,
+        &torus.positions.iter().map(swirl).collect::<Vec<_>>(),
+    )
+    .unwrap();
+    let from_atlas = texsyn::surface::flow::atlas_velocity_from_vertices(
+        &prep,
+        &prep
+            .atlas
+            .mesh
+            .positions
+            .iter()
+            .map(swirl)
+            .collect::<Vec<_>>(),
+    )
+    .unwrap();
+    assert_eq!(from_mesh, from_atlas);
+    assert!(from_mesh.iter().any(|v| v[0] != 0.0));
+    // The atlas mesh's count is the wrong one here.
+    let e =
+        texsyn::surface::flow::atlas_velocity_from_mesh_vertices(&prep, &vec![glam::Vec3::X; n]);
+    assert!(e.is_err());
 }
 
 /// With one correction pass per frame, the most corrected level's similarity sets follow

@@ -74,6 +74,12 @@ pub struct Atlas {
     /// True if xatlas built it; `note` says why the input's was not used.
     pub generated: bool,
     pub note: String,
+    /// For each vertex of `mesh`, the vertex of the mesh the atlas was built from that
+    /// it was split from (the identity where the mesh's own atlas is kept): per-vertex
+    /// data of the input mesh maps onto the atlas mesh through it.
+    pub source_vertex: Vec<u32>,
+    /// Vertices of the mesh the atlas was built from.
+    pub source_vertex_count: usize,
 }
 
 impl Atlas {
@@ -206,6 +212,8 @@ fn check_existing(mesh: &Mesh, opts: &AtlasOptions) -> std::result::Result<Atlas
         chart_count,
         generated: false,
         note: String::new(),
+        source_vertex: (0..mesh.positions.len() as u32).collect(),
+        source_vertex_count: mesh.positions.len(),
     };
     let s = opts.size as f32;
     let flat = (0..mesh.triangles.len())
@@ -565,6 +573,8 @@ fn generate(mesh: &Mesh, opts: &AtlasOptions) -> Result<Atlas> {
             chart_count,
             generated: true,
             note: String::new(),
+            source_vertex: Vec::new(),
+            source_vertex_count: mesh.positions.len(),
         };
         let (_, overlaps) = rasterize_counting(&probe, 0);
         if overlaps > 0 {
@@ -613,5 +623,7 @@ fn generate(mesh: &Mesh, opts: &AtlasOptions) -> Result<Atlas> {
         chart_count,
         generated: true,
         note: String::new(),
+        source_vertex: verts.iter().map(|v| v.xref).collect(),
+        source_vertex_count: mesh.positions.len(),
     })
 }

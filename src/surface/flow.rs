@@ -13,7 +13,9 @@ use crate::error::{Error, Result};
 use crate::flow::Flow;
 
 /// Atlas velocities from one 3D vector per vertex of the atlas mesh (world units per
-/// unit time).
+/// unit time; `prepared.atlas.mesh`, whose vertices are split where charts are cut: for
+/// vectors per vertex of the mesh given to [`super::pipeline::prepare`], see
+/// [`atlas_velocity_from_mesh_vertices`]).
 pub fn atlas_velocity_from_vertices(
     prepared: &PreparedSurface,
     per_vertex: &[Vec3],
@@ -37,6 +39,33 @@ pub fn atlas_velocity_from_vertices(
             + per_vertex[b as usize] * w[1]
             + per_vertex[c as usize] * w[2]
     }))
+}
+
+/// Atlas velocities from one 3D vector per vertex of the mesh the surface was prepared
+/// from (world units per unit time): as [`atlas_velocity_from_vertices`], the vectors
+/// first carried onto the atlas mesh's vertices, which are split where charts are cut
+/// ([`super::atlas::Atlas::source_vertex`]).
+pub fn atlas_velocity_from_mesh_vertices(
+    prepared: &PreparedSurface,
+    per_vertex: &[Vec3],
+) -> Result<Vec<[f32; 2]>> {
+    let atlas = &prepared.atlas;
+    if per_vertex.len() != atlas.source_vertex_count {
+        return Err(Error::InvalidParameter(format!(
+            "{} velocity vectors for the mesh's {} vertices",
+            per_vertex.len(),
+            atlas.source_vertex_count
+        )));
+    }
+    let carried = atlas
+        .source_vertex
+        .iter()
+        .map(|&v| per_vertex.get(v as usize).copied())
+        .collect::<Option<Vec<Vec3>>>()
+        .ok_or_else(|| {
+            Error::InvalidParameter("the atlas refers to a vertex the mesh lacks".into())
+        })?;
+    atlas_velocity_from_vertices(prepared, &carried)
 }
 
 /// Atlas velocities of a preset flow at time `t`, interpreted on the surface: `vortex`
