@@ -94,6 +94,23 @@ Velocity fields (pixels per unit time; a frame moves the texture by velocity * d
                            16-bit image), or an EXR's first two channels as pixels directly;
                            must have the output's size";
 
+/// The largest rate (OMEGA, SPEED, TURN) a preset flow takes, in size: larger ones
+/// overflow 32-bit floats when sampled, and move every pixel by the most a frame does
+/// ([`crate::passes::advect::MAX_SPEED`]) long before that.
+pub const MAX_RATE: f32 = 1e9;
+
+/// `v`, or an error if any velocity is not finite: a flow sampled at a time so large
+/// (frames x `--dt`) that its terms overflow.
+pub(crate) fn finite_velocities(v: Vec<[f32; 2]>, t: f32) -> Result<Vec<[f32; 2]>> {
+    if v.iter().flatten().all(|c| c.is_finite()) {
+        return Ok(v);
+    }
+    Err(Error::InvalidParameter(format!(
+        "the flow sampled at time {t} gives velocities that are not finite numbers (its \
+         terms overflow 32-bit floats): use a smaller time step (--dt) or slower rates"
+    )))
+}
+
 /// The most pixels [`Flow::sample`] fills (16384 x 16384).
 pub const MAX_SAMPLED_PIXELS: usize = 1 << 28;
 
@@ -120,7 +137,7 @@ impl Flow {
             }
             out
         };
-        Ok(match self {
+        let v = match self {
             Flow::Uniform { vx, vy } => vec![[*vx, *vy]; n],
             Flow::Vortex { cx, cy, omega } => {
                 let (cx, cy) = (cx * w, cy * h);
@@ -178,7 +195,8 @@ impl Flow {
                 }
                 data.as_ref().clone()
             }
-        })
+        };
+        finite_velocities(v, t)
     }
 
     /// Checks that every parameter (or every velocity of a map) is finite;
@@ -231,13 +249,27 @@ impl Flow {
                 )));
             }
         }
-        if ok {
-            Ok(())
-        } else {
-            Err(Error::InvalidParameter(
+        if !ok {
+            return Err(Error::InvalidParameter(
                 "velocity field has NaN or infinite values".into(),
-            ))
+            ));
         }
+        // Rates so large that sampling them overflows 32-bit floats: refused now, not
+        // as a non-finite velocity frames later. (A uniform velocity of any size is
+        // clamped to a frame's most, MAX_SPEED pixels per component.)
+        let rates: &[(&str, f32)] = match self {
+            Flow::Vortex { omega, .. } | Flow::LambOseen { omega, .. } => &[("OMEGA", *omega)],
+            Flow::Source { strength, .. } => &[("SPEED", *strength)],
+            Flow::Gusts { speed, turn } => &[("SPEED", *speed), ("TURN", *turn)],
+            _ => &[],
+        };
+        if let Some((name, r)) = rates.iter().find(|(_, r)| r.abs() > MAX_RATE) {
+            return Err(Error::InvalidParameter(format!(
+                "flow {name} {r:e}: at most {MAX_RATE:e} in size (per unit time; a frame moves \
+                 a pixel by at most 64 pixels per axis anyway)"
+            )));
+        }
+        Ok(())
     }
 
     /// Reads a user velocity image (see [`FLOW_HELP`]).
@@ -254,9 +286,13 @@ impl Flow {
             });
         }
         let (width, height) = (img.width(), img.height());
-        let is_exr = path
-            .extension()
-            .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
+        // Floating-point samples (an EXR, whatever the file's name) are pixels as they
+        // are; 8- and 16-bit ones are mapped from 0..1.
+        let is_exr = exr_channels.is_some()
+            || matches!(
+                img,
+                image::DynamicImage::ImageRgb32F(_) | image::DynamicImage::ImageRgba32F(_)
+            );
         let rgb = img.to_rgb32f();
         let data: Vec<[f32; 2]> = rgb
             .pixels()

@@ -778,7 +778,7 @@ fn a_new_seed_between_frames_reaches_the_texture() {
     );
     kept.step(ctx(), &v, 1.0).unwrap();
     let plan = changed.plan().clone();
-    let coarsest = plan.levels.len() - opts.levels as usize;
+    let coarsest = plan.levels.len() - opts.levels;
     assert!(coarsest > 0, "no level above the advected ones");
     let (c, f, k) = (
         changed.read_coords(ctx()).unwrap(),

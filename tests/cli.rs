@@ -1791,3 +1791,129 @@ fn advect_per_pass_table_is_by_level_without_zero_rows() {
         assert!(d > 0.0, "{stdout}");
     }
 }
+
+/// Findings of the fifty-sixth session's bad-input sweep of `advect` and `eval --flow`:
+/// each fails before any work, with what to do, and leaves nothing behind.
+#[test]
+fn advect_sweep_findings_fail_early() {
+    let dir = TempDir::new("advect-sweep");
+    let small = ["--frames", "2", "--size", "16", "-q"];
+    let advect = |extra: &[&str]| -> Vec<String> {
+        let mut a: Vec<String> = ["advect", GRAVEL].iter().map(|s| s.to_string()).collect();
+        a.extend(extra.iter().chain(&small).map(|s| s.to_string()));
+        a
+    };
+    let run = |args: Vec<String>, needle: &str| {
+        let args: Vec<&str> = args.iter().map(|s| s.as_str()).collect();
+        fails(&dir, &args, 1, needle);
+    };
+    ok(
+        &dir,
+        &[
+            "advect",
+            GRAVEL,
+            "--flow",
+            "uniform:1,0",
+            "-o",
+            "good",
+            "--frames",
+            "2",
+            "--size",
+            "16",
+            "-q",
+        ],
+    );
+    // eval checks the flow as advect does (a centre in pixels), and takes a negative
+    // --dt to refuse it.
+    fails(
+        &dir,
+        &["eval", GRAVEL, "good", "--flow", "source:10,0,1"],
+        1,
+        "fractions",
+    );
+    fails(
+        &dir,
+        &[
+            "eval",
+            GRAVEL,
+            "good",
+            "--flow",
+            "uniform:1,0",
+            "--dt",
+            "-1",
+        ],
+        1,
+        "time step",
+    );
+    // Rates that overflow when sampled are refused up front, in advect and eval.
+    // (A core radius makes the parser check the spec: a usage error.)
+    for (spec, code) in [
+        ("gusts:1,1e37", 1),
+        ("vortex:0.5,0.5,1e38", 1),
+        ("vortex:0.5,0.5,1e38,0.2", 2),
+        ("source:0.5,0.5,-3e38", 1),
+    ] {
+        let args = advect(&["--flow", spec, "-o", "huge"]);
+        let args: Vec<&str> = args.iter().map(|s| s.as_str()).collect();
+        fails(&dir, &args, code, "at most 1e9");
+        fails(
+            &dir,
+            &["eval", GRAVEL, "good", "--flow", spec],
+            code,
+            "at most 1e9",
+        );
+    }
+    #[cfg(unix)]
+    {
+        // A link to nothing, as the frames' folder or the animation.
+        std::os::unix::fs::symlink("/nonexistent/x", dir.path("dangling")).unwrap();
+        std::os::unix::fs::symlink("/nonexistent/x", dir.path("dangling.png")).unwrap();
+        run(
+            advect(&["--flow", "uniform:1,0", "-o", "dangling"]),
+            "symbolic link",
+        );
+        run(
+            advect(&["--flow", "uniform:1,0", "-o", "dangling.png"]),
+            "symbolic link",
+        );
+    }
+    // A folder where a frame goes: refused before the frames, none of them replaced.
+    std::fs::create_dir_all(dir.path("mix/frame_00001.png/x")).unwrap();
+    std::fs::copy(
+        dir.path("good/frame_00000.png"),
+        dir.path("mix/frame_00000.png"),
+    )
+    .unwrap();
+    let before = std::fs::read(dir.path("mix/frame_00000.png")).unwrap();
+    run(
+        advect(&["--flow", "uniform:1,0", "--seed", "9", "-o", "mix"]),
+        "mix/frame_00001.png is a folder",
+    );
+    assert_eq!(
+        std::fs::read(dir.path("mix/frame_00000.png")).unwrap(),
+        before
+    );
+    // An input that is one of the output folder's frames (the run replaces them).
+    let mut args: Vec<String> = [
+        "advect",
+        "good/frame_00000.png",
+        "--flow",
+        "uniform:1,0",
+        "-o",
+        "good",
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
+    args.extend(small.iter().map(|s| s.to_string()));
+    run(args, "is a frame of the output folder");
+    run(
+        advect(&[
+            "--flow",
+            "image:good/frame_00001.png",
+            "-o",
+            "./good/../good",
+        ]),
+        "is a frame of the output folder",
+    );
+}

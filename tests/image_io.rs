@@ -839,6 +839,39 @@ fn one_channel_exr_is_refused_where_two_values_are_needed() {
     assert!(texsyn::flow::Flow::load(&rgb).is_ok());
 }
 
+/// A velocity image's values are read by what the file holds, not by its name: an EXR
+/// named `.png` holds pixels per unit time as they are, an 8-bit PNG named `.exr` holds
+/// 0..1 mapped to -8..8.
+#[test]
+fn velocity_images_are_read_by_content_not_name() {
+    use texsyn::flow::Flow;
+    let dir = TempDir::new("flow-by-content");
+    let (w, h) = (4usize, 2usize);
+    let exr = dir.join("velocity.png");
+    write_exr(
+        &exr,
+        w,
+        h,
+        &[("R", vec![1.0; w * h]), ("G", vec![-0.5; w * h])],
+    );
+    let png = dir.join("velocity.exr");
+    let mut rgb = ImageBuffer::new(w as u32, h as u32);
+    for p in rgb.pixels_mut() {
+        *p = image::Rgb([192u8, 64, 0]);
+    }
+    let written = dir.join("written.png");
+    save(&DynamicImage::ImageRgb8(rgb), &written);
+    std::fs::rename(&written, &png).unwrap();
+    let sampled = |path: &Path| Flow::load(path).unwrap().sample(4, 2, 0.0).unwrap()[0];
+    assert_eq!(sampled(&exr), [1.0, -0.5]);
+    let v = sampled(&png);
+    let want = [(192.0 / 255.0 - 0.5) * 16.0, (64.0 / 255.0 - 0.5) * 16.0];
+    assert!(
+        (v[0] - want[0]).abs() < 1e-4 && (v[1] - want[1]).abs() < 1e-4,
+        "{v:?}"
+    );
+}
+
 #[cfg(unix)]
 #[test]
 fn atomic_write_follows_symlinks_keeps_devices_and_clears_stale_temporaries() {

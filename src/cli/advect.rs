@@ -216,10 +216,10 @@ pub struct AdvectArgs {
     #[arg(long, value_name = "MESH")]
     pub mesh: Option<PathBuf>,
 
-    /// Atlas size for --mesh (8 to 16384)
-    #[arg(long, default_value_t = 512, requires = "mesh",
+    /// Atlas size for --mesh (8 to 16384) [default: 512]
+    #[arg(long, requires = "mesh",
           value_parser = clap::value_parser!(u32).range(8..=16384))]
-    pub atlas_size: u32,
+    pub atlas_size: Option<u32>,
 
     #[command(flatten)]
     pub tile: TileArgs,
@@ -268,12 +268,21 @@ fn is_frame_file(name: &str) -> bool {
 }
 
 impl Staging {
-    fn new(target: &Path) -> CliResult<Self> {
+    fn new(target: &Path, inputs: &[(&str, &Path)]) -> CliResult<Self> {
         if target.exists() && !target.is_dir() {
             return Err(fail(format!(
                 "{} exists and is not a folder: give a folder for the frames, a .png or a .gif",
                 target.display()
             )));
+        }
+        if std::fs::symlink_metadata(target).is_ok() && !target.exists() {
+            return Err(fail(format!(
+                "-o {}: a symbolic link to a missing path; remove it or give another folder",
+                target.display()
+            )));
+        }
+        if target.is_dir() {
+            Self::check_existing(target, inputs)?;
         }
         let name = target.file_name().ok_or_else(|| {
             fail(format!(
@@ -307,9 +316,78 @@ impl Staging {
         })
     }
 
+    /// An existing folder takes the frames: checked before any work rather than when
+    /// they are moved in. It must take new files, no frame's name may be taken by a
+    /// folder, and no input may be one of its frames (this run replaces them).
+    fn check_existing(target: &Path, inputs: &[(&str, &Path)]) -> CliResult<()> {
+        let probe = target.join(format!(".texsyn-probe-{}", std::process::id()));
+        match std::fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(&probe)
+        {
+            Ok(_) => {
+                let _ = std::fs::remove_file(&probe);
+            }
+            Err(e) => {
+                return Err(fail(format!(
+                    "cannot write the frames into {}: it does not take new files ({e}); \
+                     choose a writable folder",
+                    target.display()
+                )))
+            }
+        }
+        let entries = std::fs::read_dir(target)
+            .map_err(|e| fail(format!("cannot read the folder {}: {e}", target.display())))?;
+        for entry in entries.flatten() {
+            if is_frame_file(&entry.file_name().to_string_lossy())
+                && entry.file_type().is_ok_and(|t| t.is_dir())
+            {
+                return Err(fail(format!(
+                    "cannot write the frames into {}: {} is a folder, where a frame goes; \
+                     move it, or give another -o",
+                    target.display(),
+                    entry.path().display()
+                )));
+            }
+        }
+        let folder = std::fs::canonicalize(target).ok();
+        for (what, input) in inputs {
+            let name = input.file_name().map(|n| n.to_string_lossy().into_owned());
+            let parent = match input.parent() {
+                Some(p) if !p.as_os_str().is_empty() => p,
+                _ => Path::new("."),
+            };
+            if name.is_some_and(|n| is_frame_file(&n))
+                && folder.is_some()
+                && std::fs::canonicalize(parent).ok() == folder
+            {
+                return Err(fail(format!(
+                    "the {what} {} is a frame of the output folder {}, which this run \
+                     replaces: copy it elsewhere, or give another -o",
+                    input.display(),
+                    target.display()
+                )));
+            }
+        }
+        Ok(())
+    }
+
     fn commit(mut self) -> CliResult<()> {
         let err = |e: std::io::Error| fail(format!("cannot write {}: {e}", self.target.display()));
         if self.target.is_dir() {
+            // All or nothing: a name the new frames cannot take (a folder put there
+            // since the start) fails before any frame is replaced.
+            for entry in std::fs::read_dir(&self.dir).map_err(err)? {
+                let to = self.target.join(entry.map_err(err)?.file_name());
+                if std::fs::symlink_metadata(&to).is_ok_and(|m| m.is_dir()) {
+                    return Err(fail(format!(
+                        "cannot write {}: it is a folder, where a frame goes; move it and \
+                         run again",
+                        to.display()
+                    )));
+                }
+            }
             // The new frames replace the old ones of the same names (each rename is
             // atomic), then the old frames beyond them go: the folder never lacks a
             // frame, and other files in it are kept.
@@ -408,7 +486,7 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
             args.output.display()
         )));
     } else {
-        let s = Staging::new(&args.output)?;
+        let s = Staging::new(&args.output, &inputs)?;
         let dir = s.dir.clone();
         staging = Some(s);
         Sink::Folder(dir)
@@ -498,7 +576,7 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
         let (mut mesh, _) = texsyn::surface::gltf_io::load_mesh(mesh_path)?;
         mesh.validate_and_repair()?;
         let opts = texsyn::surface::pipeline::SurfaceOptions {
-            atlas: texsyn::surface::atlas::AtlasOptions::for_size(args.atlas_size),
+            atlas: texsyn::surface::atlas::AtlasOptions::for_size(args.atlas_size.unwrap_or(512)),
             ..Default::default()
         };
         let prepared = texsyn::surface::pipeline::prepare(&mesh, levels, &opts)?;
@@ -687,10 +765,20 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
             report.mean_unwarped_diff()
         )
     } else {
+        // The figures leave out a 4-pixel border (the flow brings new texture in there).
+        let why = if written.1[0] < 9 || written.1[1] < 9 {
+            "frames under 9 pixels a side: the measure leaves out a 4-pixel border"
+        } else {
+            "the flow moves every pixel out of view between frames"
+        };
+        let unwarped = report.mean_unwarped_diff();
         format!(
-            "frame-to-frame difference, warped by the flow: not measurable (the flow moves \
-             every pixel out of view between frames); unwarped {:.4}",
-            report.mean_unwarped_diff()
+            "frame-to-frame difference, warped by the flow: not measurable ({why}){}",
+            if unwarped.is_finite() {
+                format!("; unwarped {unwarped:.4}")
+            } else {
+                String::new()
+            }
         )
     });
     let pops = report.mean_pops();

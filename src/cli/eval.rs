@@ -73,7 +73,12 @@ pub struct EvalArgs {
     pub flow: Option<super::advect::FlowArg>,
 
     /// Time step of --flow (velocity * dt per frame)
-    #[arg(long, default_value_t = 1.0, requires = "flow")]
+    #[arg(
+        long,
+        default_value_t = 1.0,
+        requires = "flow",
+        allow_hyphen_values = true
+    )]
     pub dt: f32,
 
     /// With --flow: texture energy (of 5x5 windows, as `texsyn advect` prints it; plain
@@ -134,7 +139,10 @@ pub fn run(ui: &Ui, args: EvalArgs) -> CliResult<()> {
     }
     let exemplar = ui.load_exemplar(&args.exemplar)?;
     if let Some(flow) = &args.flow {
-        return temporal(ui, &args, &exemplar, &flow.load()?);
+        // The same checks as `advect` (a centre given in pixels, a core radius of 0).
+        let flow = flow.load()?;
+        flow.validate()?;
+        return temporal(ui, &args, &exemplar, &flow);
     }
     // The energy map's path is checked before any work.
     if let Some(path) = &args.energy_map {

@@ -499,6 +499,13 @@ pub fn check_output_dir(path: &Path) -> CliResult<()> {
             path.display()
         )));
     }
+    if std::fs::symlink_metadata(path).is_ok() && !path.exists() {
+        return Err(fail(format!(
+            "cannot write {}: it is a symbolic link to a missing path; remove it or give \
+             another name",
+            path.display()
+        )));
+    }
     // A device or pipe (`-o /dev/null`) is written to as it is, not replaced (opening a
     // pipe now would wait for its reader: the write reports any error).
     if std::fs::metadata(path).is_ok_and(|m| !m.is_file()) {

@@ -107,10 +107,11 @@ pub fn atlas_velocity(prepared: &PreparedSurface, flow: &Flow, t: f32) -> Result
             "image flows are 2D; on a mesh use vortex, uniform, source or gusts, or per-vertex vectors through the library".into(),
         ));
     }
-    Ok(project(prepared, |tri, w| {
+    let v = project(prepared, |tri, w| {
         let [a, b, c] = mesh.corners(tri);
         at(a * w[0] + b * w[1] + c * w[2])
-    }))
+    });
+    crate::flow::finite_velocities(v, t)
 }
 
 /// Per chart texel: the 3D vector `v(triangle, barycentric)`, projected to the
