@@ -62,7 +62,9 @@ fn main() -> texsyn::Result<()> {
     // turns (README, *Advection*).
     let mut advection = Advection::new(&ctx, synthesizer, &params, AdvectOptions::default())?;
 
-    // The application's velocity buffer (vec2<f32> per pixel), updated every frame.
+    // The application's velocity buffer (vec2<f32> per pixel), updated every frame (a
+    // velocity texture, e.g. a fluid simulation's Rg32Float output, goes to
+    // `encode_step_texture` instead).
     let velocity = ctx.device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("host velocity"),
         size: w as u64 * h as u64 * 8,

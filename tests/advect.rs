@@ -310,6 +310,134 @@ fn advection_frames_gpu_match_cpu() {
     assert!(a1.read_coords(ctx()).unwrap() == a2.read_coords(ctx()).unwrap());
 }
 
+/// The 16-bit float of `x`, which must be 0, NaN or a normal 16-bit value held exactly
+/// (the test's velocities are multiples of 1/64 below 8).
+fn f16_bits(x: f32) -> u16 {
+    if x.is_nan() {
+        return 0x7e00;
+    }
+    let b = x.to_bits();
+    let sign = ((b >> 16) & 0x8000) as u16;
+    if x == 0.0 {
+        return sign;
+    }
+    let exp = ((b >> 23) & 0xff) as i32 - 127 + 15;
+    assert!(
+        (1..31).contains(&exp) && b & 0x1fff == 0,
+        "{x} is no exact f16"
+    );
+    sign | ((exp as u16) << 10) | ((b >> 13) & 0x3ff) as u16
+}
+
+/// A velocity texture the caller owns (`Advection::encode_step_texture`: red, green = x,
+/// y): the same frames as the host path, in 32- and 16-bit float formats of two and four
+/// channels (a non-finite component 0, as in a buffer); a texture of the wrong size,
+/// format or usage is an error before anything is recorded.
+#[test]
+fn caller_velocity_texture_gives_the_host_paths_frames() {
+    let (_, synth, _) = setup(32);
+    let (w, h) = (40u32, 36u32);
+    let params = SynthParams {
+        width: w,
+        height: h,
+        ..SynthParams::default()
+    };
+    // Velocities that 16-bit floats hold exactly (multiples of 1/64 below 8).
+    let v: Vec<[f32; 2]> = Flow::Vortex {
+        cx: 0.4,
+        cy: 0.6,
+        omega: 0.05,
+    }
+    .sample(w, h, 0.0)
+    .unwrap()
+    .iter()
+    .map(|p| p.map(|c| (c * 64.0).round() / 64.0))
+    .collect();
+    let texture = |format: wgpu::TextureFormat, usage: wgpu::TextureUsages, size: [u32; 2]| {
+        let texels: Vec<u8> = (0..(size[0] * size[1]) as usize)
+            .flat_map(|i| {
+                let p = v.get(i).copied().unwrap_or([0.0; 2]);
+                // Green of pixel 5 is NaN (the host gets 0 there).
+                let g = if i == 5 { f32::NAN } else { p[1] };
+                let rgba = [p[0], g, 7.0, 1.0];
+                let n = format.components() as usize;
+                let bytes = format.block_copy_size(None).unwrap() as usize / n;
+                rgba[..n]
+                    .iter()
+                    .flat_map(|&x| match bytes {
+                        4 => x.to_le_bytes().to_vec(),
+                        2 => f16_bits(x).to_le_bytes().to_vec(),
+                        _ => vec![0u8; bytes],
+                    })
+                    .collect::<Vec<u8>>()
+            })
+            .collect();
+        wgpu::util::DeviceExt::create_texture_with_data(
+            &ctx().device,
+            &ctx().queue,
+            &wgpu::TextureDescriptor {
+                label: None,
+                size: wgpu::Extent3d {
+                    width: size[0],
+                    height: size[1],
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage,
+                view_formats: &[],
+            },
+            wgpu::util::TextureDataOrder::LayerMajor,
+            &texels,
+        )
+    };
+    let mut host = v.clone();
+    host[5][1] = 0.0;
+    let opts = AdvectOptions::default();
+    let mut reference = Advection::new(ctx(), synth.clone(), &params, opts).unwrap();
+    for dt in [1.0, 0.75] {
+        reference.step(ctx(), &host, dt).unwrap();
+    }
+    let want = reference.read_coords(ctx()).unwrap();
+    let usage = wgpu::TextureUsages::TEXTURE_BINDING;
+    use wgpu::TextureFormat as F;
+    for format in [F::Rg32Float, F::Rgba32Float, F::Rg16Float, F::Rgba16Float] {
+        let t = texture(format, usage, [w, h]);
+        let mut adv = Advection::new(ctx(), synth.clone(), &params, opts).unwrap();
+        for dt in [1.0, 0.75] {
+            let mut encoder = ctx().device.create_command_encoder(&Default::default());
+            adv.encode_step_texture(ctx(), &mut encoder, &t, dt)
+                .unwrap();
+            ctx().queue.submit([encoder.finish()]);
+        }
+        assert!(adv.read_coords(ctx()).unwrap() == want, "{format:?}");
+    }
+    // Refused before anything is recorded: the encoder still submits, the frame count
+    // stays.
+    let mut adv = Advection::new(ctx(), synth, &params, opts).unwrap();
+    let bad = [
+        (texture(F::Rg32Float, usage, [w + 1, h]), "41x36"),
+        (texture(F::Rgba8Unorm, usage, [w, h]), "Rgba8Unorm"),
+        (
+            texture(F::Rg32Float, wgpu::TextureUsages::COPY_DST, [w, h]),
+            "TEXTURE_BINDING",
+        ),
+    ];
+    for (t, needle) in &bad {
+        let mut encoder = ctx().device.create_command_encoder(&Default::default());
+        let e = adv
+            .encode_step_texture(ctx(), &mut encoder, t, 1.0)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(needle), "{e}");
+        ctx().queue.submit([encoder.finish()]);
+    }
+    assert_eq!(adv.frame(), 0);
+    ctx().take_uncaptured_errors().unwrap();
+}
+
 /// The frames leave the pixels inside coherent patches, which the correction would keep
 /// or only nudge within the pixel: under a turning flow a sixth of the most corrected
 /// level's pixels are skipped (0.16 measured; the second-finest level, whose patches are

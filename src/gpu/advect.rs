@@ -48,6 +48,9 @@ pub struct Advection {
     view: wgpu::TextureView,
     quantize: wgpu::ComputePipeline,
     quantize_layout: wgpu::BindGroupLayout,
+    /// The pipeline quantizing a caller's velocity texture, built on first use
+    /// ([`Self::encode_step_texture`]).
+    texture_quantize: Option<(wgpu::ComputePipeline, wgpu::BindGroupLayout)>,
     frame: u64,
     /// Whether the coordinate buffer holds the fade state the next frame reads (the
     /// previous frame faded).
@@ -112,57 +115,15 @@ impl Advection {
             if let Some(level) = crate::passes::plan::quarter_tables_level(&frame, analysis) {
                 synthesizer.fine_tables(ctx, level);
             }
-            let entry = |binding, ty| wgpu::BindGroupLayoutEntry {
-                binding,
-                visibility: wgpu::ShaderStages::COMPUTE,
-                ty,
-                count: None,
-            };
-            let storage = |read_only| wgpu::BindingType::Buffer {
-                ty: wgpu::BufferBindingType::Storage { read_only },
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            };
-            let quantize_layout =
-                ctx.device
-                    .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                        label: Some("texsyn velocity"),
-                        entries: &[
-                            entry(
-                                0,
-                                wgpu::BindingType::Buffer {
-                                    ty: wgpu::BufferBindingType::Uniform,
-                                    has_dynamic_offset: false,
-                                    min_binding_size: None,
-                                },
-                            ),
-                            entry(1, storage(true)),
-                            entry(2, storage(false)),
-                        ],
-                    });
-            let layout = ctx
-                .device
-                .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                    label: Some("texsyn velocity"),
-                    bind_group_layouts: &[Some(&quantize_layout)],
-                    immediate_size: 0,
-                });
-            let module = ctx
-                .device
-                .create_shader_module(wgpu::ShaderModuleDescriptor {
-                    label: Some(shaders::VELOCITY.file),
-                    source: wgpu::ShaderSource::Wgsl(shaders::VELOCITY.source.into()),
-                });
-            let quantize = ctx
-                .device
-                .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                    label: Some("texsyn velocity"),
-                    layout: Some(&layout),
-                    module: &module,
-                    entry_point: Some(shaders::VELOCITY.entry_point),
-                    compilation_options: Default::default(),
-                    cache: None,
-                });
+            let (quantize, quantize_layout) = quantize_pipeline(
+                ctx,
+                wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Storage { read_only: true },
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
+                shaders::VELOCITY,
+            );
             (
                 coords,
                 velocity,
@@ -187,6 +148,7 @@ impl Advection {
             view,
             quantize,
             quantize_layout,
+            texture_quantize: None,
             frame: 0,
             fade_state: options.fade > 0,
             grow_from: None,
@@ -587,13 +549,130 @@ impl Advection {
                 velocity.usage()
             )));
         }
-        // The bind group first, in its own error scope: a buffer that is destroyed,
-        // invalid or from another device of this instance fails here, before anything is
-        // recorded.
+        // Only the pixels' velocities: a larger buffer may exceed the binding limit, and
+        // the rest is not read.
+        let input = wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+            buffer: velocity,
+            offset: 0,
+            size: std::num::NonZeroU64::new(n * 8),
+        });
+        self.record_quantize(
+            ctx,
+            encoder,
+            &self.quantize,
+            &self.quantize_layout,
+            input,
+            dt,
+        )?;
+        self.record_frame(ctx, encoder)
+    }
+
+    /// [`Self::encode_step`] from a velocity texture the caller owns (e.g. a fluid
+    /// simulation's output), recorded into the caller's encoder: nothing goes through the
+    /// host. Red and green of mip level 0 are the x and y velocity (output pixels per unit
+    /// of time, y down), one texel per output pixel: a 2D texture of the output's size,
+    /// one layer, not multisampled, in a float format of two or four channels
+    /// (`Rg32Float`, `Rgba32Float`, `Rg16Float`, `Rgba16Float`), with usage
+    /// TEXTURE_BINDING, from the same device. The frame is the one [`Self::step`] makes
+    /// from the same velocities (tested). Non-finite components count as 0. The checks
+    /// run before anything is recorded, as in [`Self::encode_step`].
+    pub fn encode_step_texture(
+        &mut self,
+        ctx: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        velocity: &wgpu::Texture,
+        dt: f32,
+    ) -> Result<()> {
+        self.synthesizer.check_context(ctx)?;
+        Self::check_dt(dt)?;
+        let (w, h) = (self.params.width, self.params.height);
+        let size = velocity.size();
+        if velocity.dimension() != wgpu::TextureDimension::D2
+            || (size.width, size.height, size.depth_or_array_layers) != (w, h, 1)
+        {
+            return Err(Error::InvalidParameter(format!(
+                "the velocity texture is {:?} of {}x{}x{}; the output needs a 2D texture of \
+                 {w}x{h}, one layer (a texel per pixel)",
+                velocity.dimension(),
+                size.width,
+                size.height,
+                size.depth_or_array_layers
+            )));
+        }
+        use wgpu::TextureFormat as F;
+        if !matches!(
+            velocity.format(),
+            F::Rg32Float | F::Rgba32Float | F::Rg16Float | F::Rgba16Float
+        ) || velocity.sample_count() != 1
+        {
+            return Err(Error::InvalidParameter(format!(
+                "the velocity texture's format is {:?} ({} samples); give Rg32Float, \
+                 Rgba32Float, Rg16Float or Rgba16Float, not multisampled (red, green = x, y \
+                 velocity in pixels per unit time)",
+                velocity.format(),
+                velocity.sample_count()
+            )));
+        }
+        if !velocity
+            .usage()
+            .contains(wgpu::TextureUsages::TEXTURE_BINDING)
+        {
+            return Err(Error::InvalidParameter(format!(
+                "the velocity texture's usage is {:?}; create it with \
+                 TextureUsages::TEXTURE_BINDING (a compute shader reads it)",
+                velocity.usage()
+            )));
+        }
+        if self.texture_quantize.is_none() {
+            let built = ctx.scoped(|| {
+                quantize_pipeline(
+                    ctx,
+                    wgpu::BindingType::Texture {
+                        // Not filterable: takes the 32-bit float formats too.
+                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                    shaders::VELOCITY_TEXTURE,
+                )
+            })?;
+            self.texture_quantize = Some(built);
+        }
+        // A view of mip level 0 in its own error scope: a destroyed texture, or one from
+        // another device of this instance, fails here.
+        let view = ctx.scoped(|| {
+            velocity.create_view(&wgpu::TextureViewDescriptor {
+                label: Some("texsyn velocity"),
+                base_mip_level: 0,
+                mip_level_count: Some(1),
+                ..Default::default()
+            })
+        })?;
+        let (pipeline, layout) = self.texture_quantize.as_ref().expect("built above");
+        let input = wgpu::BindingResource::TextureView(&view);
+        self.record_quantize(ctx, encoder, pipeline, layout, input, dt)?;
+        self.record_frame(ctx, encoder)
+    }
+
+    /// Records the quantization of the caller's velocities (`input`, binding 1 of
+    /// `layout`) into the advection's velocity buffer. The bind group first, in its own
+    /// error scope: an input that is destroyed, invalid or from another device of this
+    /// instance fails there, before anything is recorded.
+    fn record_quantize(
+        &self,
+        ctx: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        pipeline: &wgpu::ComputePipeline,
+        layout: &wgpu::BindGroupLayout,
+        input: wgpu::BindingResource,
+        dt: f32,
+    ) -> Result<()> {
+        let n = self.params.width as u64 * self.params.height as u64;
         let group = ctx.scoped(|| {
             let mut uniform = [0u8; 16];
             uniform[..4].copy_from_slice(&(n as u32).to_le_bytes());
             uniform[4..8].copy_from_slice(&dt.to_le_bytes());
+            uniform[8..12].copy_from_slice(&self.params.width.to_le_bytes());
             let params = crate::gpu::buffer_init(
                 &ctx.device,
                 &wgpu::util::BufferInitDescriptor {
@@ -604,21 +683,15 @@ impl Advection {
             );
             ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("texsyn velocity"),
-                layout: &self.quantize_layout,
+                layout,
                 entries: &[
                     wgpu::BindGroupEntry {
                         binding: 0,
                         resource: params.as_entire_binding(),
                     },
-                    // Only the pixels' velocities: a larger buffer may exceed the
-                    // binding limit, and the rest is not read.
                     wgpu::BindGroupEntry {
                         binding: 1,
-                        resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                            buffer: velocity,
-                            offset: 0,
-                            size: std::num::NonZeroU64::new(n * 8),
-                        }),
+                        resource: input,
                     },
                     wgpu::BindGroupEntry {
                         binding: 2,
@@ -629,12 +702,11 @@ impl Advection {
         })?;
         ctx.scoped(|| {
             let mut pass = encoder.begin_compute_pass(&Default::default());
-            pass.set_pipeline(&self.quantize);
+            pass.set_pipeline(pipeline);
             pass.set_bind_group(0, &group, &[]);
             let groups = (n as u32).div_ceil(64);
             pass.dispatch_workgroups(groups.min(65535), groups.div_ceil(65535), 1);
-        })?;
-        self.record_frame(ctx, encoder)
+        })
     }
 
     /// Records the pending copy into an enlarged coordinate buffer (see `grow_from`).
@@ -689,4 +761,68 @@ impl Advection {
         let data = read_buffer(ctx, &rb)?;
         Ok(bytemuck::cast_slice(&data).to_vec())
     }
+}
+
+/// The pipeline and bind group layout that quantize a caller's velocities: binding 0
+/// the parameters (uniform), 1 the input (`input`: a storage buffer or a texture), 2 the
+/// advection's velocity buffer (`shaders/shared/velocity.wgsl`).
+fn quantize_pipeline(
+    ctx: &GpuContext,
+    input: wgpu::BindingType,
+    shader: shaders::ShaderSource,
+) -> (wgpu::ComputePipeline, wgpu::BindGroupLayout) {
+    let entry = |binding, ty| wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty,
+        count: None,
+    };
+    let layout = ctx
+        .device
+        .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("texsyn velocity"),
+            entries: &[
+                entry(
+                    0,
+                    wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                ),
+                entry(1, input),
+                entry(
+                    2,
+                    wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Storage { read_only: false },
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                ),
+            ],
+        });
+    let pipeline_layout = ctx
+        .device
+        .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("texsyn velocity"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+    let module = ctx
+        .device
+        .create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some(shader.file),
+            source: wgpu::ShaderSource::Wgsl(shader.source.into()),
+        });
+    let pipeline = ctx
+        .device
+        .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("texsyn velocity"),
+            layout: Some(&pipeline_layout),
+            module: &module,
+            entry_point: Some(shader.entry_point),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+    (pipeline, layout)
 }
