@@ -1005,6 +1005,17 @@ fn bad_velocities_and_time_steps() {
             .to_string();
         assert!(e.contains("sets every"), "{e}");
     }
+    let e = adv
+        .set_options(
+            ctx(),
+            AdvectOptions {
+                coarsest_passes: Some(17),
+                ..AdvectOptions::keep_look()
+            },
+        )
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("17 on the coarsest advected level"), "{e}");
     let d = AdvectOptions::default();
     for (o, needle) in [
         // One level with the finest upsampled would advect nothing.
@@ -1642,18 +1653,20 @@ fn advection_frames_take_turns_with_the_similarity_sets() {
     }
 }
 
-/// With `keep_look` every advected level runs its four subpasses every frame, and each
+/// With `keep_look` every advected level runs all its subpasses every frame (four per
+/// pass: two passes at the coarsest advected level, `coarsest_passes`, one below), and each
 /// follows `sets_every` (fifty-fourth session: the coarser advected levels scored their
 /// sets on every correction before, a quarter of the frame's GPU time for the same
-/// figures): per frame, four subpasses divided by `sets_every` score the similarity sets
-/// (one for 4, none or one for 16 in turn), and over `sets_every` frames each parity class
-/// scores them once.
+/// figures): per frame, the subpasses divided by `sets_every` score the similarity sets
+/// (one of four for 4, two of eight), and each parity class scores them on every
+/// `sets_every`-th of its corrections.
 #[test]
 fn keep_look_levels_take_turns_with_the_similarity_sets() {
     use texsyn::passes::plan::PassKind;
     let ex = common::gravel_crop(32);
     let a = analyze(&ex, &AnalysisOptions::default(), |_| {}).unwrap();
     assert_eq!(AdvectOptions::keep_look().sets_every, 4);
+    assert_eq!(AdvectOptions::keep_look().coarsest_passes, Some(2));
     let params = Advection::synthesis_params(&SynthParams {
         width: 40,
         height: 24,
@@ -1669,6 +1682,8 @@ fn keep_look_levels_take_turns_with_the_similarity_sets() {
         let advected = n - 1 - o.levels + 1..n - 1;
         assert_eq!(advected.len(), 3);
         for level in advected {
+            // The coarsest advected level two passes (`coarsest_passes`), the others one.
+            let passes = if level == n - 4 { 2 } else { 1 };
             let mut per_class: std::collections::HashMap<[i32; 2], usize> = Default::default();
             for frame in 0..8u64 {
                 let ks: Vec<(i32, [i32; 2])> = plan
@@ -1677,11 +1692,11 @@ fn keep_look_levels_take_turns_with_the_similarity_sets() {
                     .filter(|d| d.level == level && d.kind == PassKind::CorrectAniso)
                     .map(|d| (d.params.k, d.params.parity))
                     .collect();
-                assert_eq!(ks.len(), 4, "level {level}, frame {frame}");
+                assert_eq!(ks.len(), 4 * passes, "level {level}, frame {frame}");
                 let with_sets: Vec<_> = ks.iter().filter(|(k, _)| *k == a.k as i32).collect();
                 assert_eq!(
                     with_sets.len(),
-                    4 / sets_every as usize,
+                    4 * passes / sets_every as usize,
                     "level {level}, frame {frame}, sets every {sets_every}"
                 );
                 assert!(ks.iter().all(|(k, _)| *k == a.k as i32 || *k == 1));
@@ -1689,10 +1704,12 @@ fn keep_look_levels_take_turns_with_the_similarity_sets() {
                     *per_class.entry(*parity).or_default() += 1;
                 }
             }
-            // Over 8 frames each class scores them 8 / sets_every times.
+            // Over 8 frames each class scores them 8 x passes / sets_every times.
             assert_eq!(per_class.len(), 4, "level {level}");
             assert!(
-                per_class.values().all(|&c| c == 8 / sets_every as usize),
+                per_class
+                    .values()
+                    .all(|&c| c == 8 * passes / sets_every as usize),
                 "level {level}, sets every {sets_every}: {per_class:?}"
             );
         }

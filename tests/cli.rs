@@ -1877,6 +1877,19 @@ fn advect_sweep_findings_fail_early() {
             "symbolic link",
         );
     }
+    // More than 16 correction passes on the coarser advected levels.
+    run(
+        advect(&[
+            "--flow",
+            "vortex",
+            "--keep-look",
+            "--coarsest-passes",
+            "17",
+            "-o",
+            "cp",
+        ]),
+        "17 on the coarsest advected level",
+    );
     // A folder where a frame goes: refused before the frames, none of them replaced.
     std::fs::create_dir_all(dir.path("mix/frame_00001.png/x")).unwrap();
     std::fs::copy(

@@ -161,6 +161,14 @@ pub struct AdvectArgs {
     #[arg(long, default_value_t = AdvectOptions::default().passes)]
     pub passes: u32,
 
+    /// Correction passes per frame of the coarsest advected level (where it is not the
+    /// second-finest), 0..=16. It is small: with --keep-look a second pass there
+    /// settles the renewals (gravel, vortex, 300 frames: 1.14% of the blocks popping at
+    /// x1.00 of frame 0's texture energy, against 1.61% at x1.12)
+    /// [default: --passes; with --keep-look 2, or --passes if that is 0 or larger]
+    #[arg(long, value_name = "N")]
+    pub coarsest_passes: Option<u32>,
+
     /// Interpolate the exemplar bilinearly at the advected coordinates (smoother
     /// sub-pixel motion, but soft) instead of reading the nearest texel
     #[arg(long)]
@@ -503,6 +511,11 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
         levels: args.levels.unwrap_or(preset.levels),
         threshold: args.threshold.unwrap_or(preset.threshold),
         passes: args.passes,
+        coarsest_passes: args.coarsest_passes.or(if args.passes == 0 {
+            None
+        } else {
+            preset.coarsest_passes.map(|c| c.max(args.passes))
+        }),
         nearest: !args.bilinear,
         interpolate_sets: args.interpolate_sets,
         quarter_reads: !args.exact_reads,

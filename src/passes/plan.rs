@@ -1029,6 +1029,43 @@ impl SynthPlan {
         frame_plan
     }
 
+    /// The synthesis schedule a frame takes its levels' corrections from (no skipping):
+    /// the frames' `passes` at every level but the coarsest advected one, `coarsest`,
+    /// which takes [`super::advect::AdvectOptions::coarsest_passes`] where it is not the
+    /// most corrected level `top`.
+    fn frame_synthesis(
+        &self,
+        analysis: &Analysis,
+        options: &super::advect::AdvectOptions,
+        coarsest: usize,
+        top: usize,
+    ) -> Vec<Dispatch> {
+        let full = self
+            .frame_plan(options)
+            .schedule_inner(analysis, false, false);
+        let coarse = options.level_coarsest_passes();
+        if coarse == options.passes || coarsest >= top {
+            return full;
+        }
+        let mut plan = self.frame_plan(options);
+        plan.params.passes = coarse;
+        plan.params.second_finest_passes = Some(coarse);
+        plan.params.finest_passes = coarse;
+        // Both are in level order (the gather last, at the finest level).
+        let mut out: Vec<Dispatch> = full
+            .iter()
+            .filter(|d| d.level < coarsest)
+            .copied()
+            .collect();
+        out.extend(
+            plan.schedule_inner(analysis, false, false)
+                .into_iter()
+                .filter(|d| d.level == coarsest),
+        );
+        out.extend(full.into_iter().filter(|d| d.level > coarsest));
+        out
+    }
+
     /// The dispatches of one advection frame (paper section 7), on the `levels` finest
     /// levels, coarse to fine. Each advected level: advect the coordinates in place, flag
     /// the pixels distorted beyond `c` (|J_obs - J|_F, Jacobian units), upsample only
@@ -1070,10 +1107,11 @@ impl SynthPlan {
             n - 1
         };
         let first = n - levels.clamp(1, n);
-        // The synthesis schedule with `passes` correction passes at every level.
+        // The synthesis schedule with `passes` correction passes at every level but the
+        // coarsest advected one (`coarsest_passes`). No skipping (see
+        // `schedule_inner`): the advection moves the coordinates.
         let frame_plan = self.frame_plan(options);
-        // No skipping (see `schedule_inner`): the advection moves the coordinates.
-        let full = frame_plan.schedule_inner(analysis, false, false);
+        let full = self.frame_synthesis(analysis, options, first.min(top), top);
         let drift = self.drift_index();
         let mut out = vec![Dispatch {
             kind: PassKind::Drift,
@@ -1143,6 +1181,18 @@ impl SynthPlan {
             // eighth raises the energy at frame 300 by 2-5% (gravel, brick; the marble's
             // veins stay), for a per-frame cost of 48-50% of a synthesis at 512x512 on
             // lavapipe instead of 53-56%.
+            let passes = if level == coarsest && level < top {
+                options.level_coarsest_passes()
+            } else {
+                passes
+            };
+            // Subpasses per pass (4, more on a periodic level of odd size).
+            let per_pass = (full
+                .iter()
+                .filter(|d| d.level == level && d.kind == PassKind::CorrectAniso)
+                .count() as u64
+                / passes.max(1) as u64)
+                .max(1);
             let mut subpass = 0u64;
             let mut keep_fill = true;
             for d in full.iter().filter(|d| d.level == level) {
@@ -1180,14 +1230,19 @@ impl SynthPlan {
                             // coarser two scoring every correction; `keep_look()`'s 4,
                             // 0.20% at x1.17, the coarser corrections about a third
                             // cheaper; brick and grass alike).
+                            // With more passes per frame (a keep-look level's
+                            // `coarse_passes`), the same over the level's corrections:
+                            // class c's correction in pass p of frame f is its
+                            // (f * passes + p)-th.
                             let every = frame_plan.params.sets_every as u64;
                             let sets = if upsample_finest {
-                                (subpass + frame).is_multiple_of(every)
+                                let (pass, class) = (subpass / per_pass, subpass % per_pass);
+                                (frame * passes as u64 + pass + class).is_multiple_of(every)
                             } else {
                                 (subpass / 2 + frame / 2).is_multiple_of(every)
                             };
-                            if passes == 1 && (most || options.keep_look) && !sets {
-                                d.params.k = 1;
+                            if (passes == 1 && most) || options.keep_look {
+                                d.params.k = if sets { base.k } else { 1 };
                             }
                             out.push(d);
                         }
@@ -1267,9 +1322,7 @@ impl SynthPlan {
             };
             s.retain(|d| d.level <= kept);
             if remade > 0 {
-                let full = self
-                    .frame_plan(options)
-                    .schedule_inner(analysis, false, false);
+                let full = self.frame_synthesis(analysis, options, coarsest, top);
                 s.extend(resynthesized_levels(&full, kept, remade, 0));
             }
             s.extend(finest_without_corrections(&synthesis, n - 1));
