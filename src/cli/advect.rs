@@ -66,19 +66,21 @@ pub struct AdvectArgs {
     /// The texture energy stays near frame 0's under a vortex, but the texture is
     /// continuously remade as it moves (over tens of frames most of it is new); a uniform
     /// flow still moves it exactly (where the field is constant). Every advected level is
-    /// corrected in full every frame (--correct-coherent implied). Without it the texture
-    /// is advected (the paper's scheme) and breaks up as it turns
+    /// corrected in full every frame (--correct-coherent implied), the coarsest twice
+    /// (--coarsest-passes 2). On a mesh or along a varying --field it remakes the detail
+    /// almost everywhere and pops: use the default there. Without it the texture is
+    /// advected (the paper's scheme) and breaks up as it turns
     #[arg(long, conflicts_with_all = ["advect_finest", "resynthesize"])]
     pub keep_look: bool,
 
     /// Fade pops in over N frames (0: off): where a pixel's texture changes other than by
     /// moving with the flow (a renewed patch and the detail remade under it), its old
     /// content moves on with the flow and fades out while the new one fades in, with the
-    /// contrast kept. 1 frame trades best: gravel, vortex, --keep-look --fade 1: 7x fewer
-    /// pops for a texture energy of x1.17 frame 0's over 300 frames (x1.12 without), and
-    /// about 10 ms more per 512x512 frame on lavapipe (its pass, 12-16 ms, replaces the
-    /// 3 ms gather). A uniform flow of whole pixels is
-    /// unaffected
+    /// contrast kept. Gravel, vortex, 300 frames, --keep-look: --fade 1 pops 6.5x less
+    /// (0.175% of the 8x8 blocks per frame) for a texture energy of x1.06 frame 0's at
+    /// frame 300 (x1.00 without), --fade 2 20x less (0.058%) at x1.17; about 10 ms more
+    /// per 512x512 frame on lavapipe (its pass, 12-16 ms, replaces the 3 ms gather). A
+    /// uniform flow of whole pixels is unaffected
     #[arg(
         long,
         value_name = "N",
@@ -90,8 +92,8 @@ pub struct AdvectArgs {
     /// With --fade: how much the jumps around a pixel that jumped must change the colour
     /// on average (of 255, over its 3x3 neighbourhood) for it to fade (0-255). Lower fades
     /// more pops for a higher texture energy (gravel, --keep-look --fade 1, 300 frames of
-    /// the vortex: 35 left 0.08% of the 8x8 blocks popping per frame at a mean texture
-    /// energy of x1.20 frame 0's; 40 0.12% at x1.18; 45 0.20% at x1.17)
+    /// the vortex: 35 left 0.099% of the 8x8 blocks popping per frame at a texture energy
+    /// of x1.10 frame 0's at frame 300; 45 0.175% at x1.06)
     #[arg(
         long,
         value_name = "T",
@@ -104,9 +106,9 @@ pub struct AdvectArgs {
     /// renewed, a pixel continues the nearest-landing of the anchors around it (a grid of
     /// this spacing) straightened along the field, instead of being upsampled from the
     /// coarser level, so it keeps nearly what it showed instead of popping. For textures
-    /// without long structures: gravel, --keep-look, 300 frames of the vortex: 1.09% of
-    /// the 8x8 blocks popping per frame against 1.61%, with --fade 1 0.16% against 0.24%,
-    /// at the same mean energy; the marble's energy rises (mean x1.14 against x1.09)
+    /// without long structures: gravel, --keep-look, 300 frames of the vortex: 0.89% of
+    /// the 8x8 blocks popping per frame against 1.14%, with --fade 1 0.149% against
+    /// 0.175%, at the same mean energy; the marble's energy rises (x1.10 against x0.95)
     #[arg(
         long,
         value_name = "SPACING",
@@ -118,7 +120,7 @@ pub struct AdvectArgs {
     /// With --anchor: the share of the renewals (0-1) upsampled from the coarser level
     /// anyway. Anchored renewals never bring back the coarse levels' large structures,
     /// which break up over hundreds of frames (marble veins) without some; lower pops
-    /// less (gravel as above: 0 left 0.63% popping, 0.5 1.09%)
+    /// less (gravel, fifty-fifth session's build: 0 left 0.63% popping, 0.5 1.09%)
     #[arg(
         long,
         value_name = "SHARE",
