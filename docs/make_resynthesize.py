@@ -3,8 +3,8 @@
 vortex, 256x256, with the levels below the finest advected (the default), with `--keep-look`
 (the advected levels below the coarsest one remade wherever the flow turns them, the coarsest
 renewed where it has turned by about 5 degrees), with `--keep-look --fade 1` (pops shown
-blended for a frame) and with `--keep-look --anchor 4 --fade 1` (anchored renewals, which keep
-what a renewed pixel showed, straightened), for the bundled brick and gravel; next to each, where frame 300 differs from
+blended for a frame) and with `--keep-look --fade 2` (blended over two frames), for the
+bundled brick and gravel; next to each, where frame 300 differs from
 frame 299 moved by the flow (white: a change of 1/3 of full scale or more), which is the
 popping `--keep-look` costs and `--fade` spreads over frames.
 
@@ -22,8 +22,7 @@ from PIL import Image, ImageDraw
 EXEMPLARS = ["brick", "gravel"]
 CONFIGS = [("default", []), ("--keep-look", ["--keep-look"]),
            ("--keep-look --fade 1", ["--keep-look", "--fade", "1"]),
-           # With --keep-look too (the label fits the tile without it).
-           ("--anchor 4 --fade 1", ["--keep-look", "--anchor", "4", "--fade", "1"])]
+           ("--keep-look --fade 2", ["--keep-look", "--fade", "2"])]
 SIZE, GAP, LABEL, OMEGA = 256, 8, 14, 0.01
 BIN = os.environ.get("TEXSYN", "target/release/texsyn")
 
