@@ -835,8 +835,8 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
     if let Some(r) = rise.filter(|&r| r > 1.2 && !args.keep_look) {
         ui.info(format!(
             "  the texture energy rose {r:.2}x: the flow breaks the texture up as it turns or \
-             stretches it; --keep-look remakes it as it moves and keeps its look (README, \
-             Advection)"
+             stretches it; --keep-look remakes it as it moves and keeps its look, and \
+             --fade 2 blends what it renews (README, Advection)"
         ));
     }
     ui.info(format!(
