@@ -1666,7 +1666,7 @@ fn keep_look_levels_take_turns_with_the_similarity_sets() {
     let ex = common::gravel_crop(32);
     let a = analyze(&ex, &AnalysisOptions::default(), |_| {}).unwrap();
     assert_eq!(AdvectOptions::keep_look().sets_every, 4);
-    assert_eq!(AdvectOptions::keep_look().coarsest_passes, Some(2));
+    assert_eq!(AdvectOptions::keep_look().coarsest_passes, None);
     let params = Advection::synthesis_params(&SynthParams {
         width: 40,
         height: 24,
@@ -1674,6 +1674,23 @@ fn keep_look_levels_take_turns_with_the_similarity_sets() {
     });
     let plan = SynthPlan::new(&a, &params).unwrap();
     let n = plan.levels.len();
+    // Two passes on the coarsest advected level by default, where J is constant.
+    assert_eq!(plan.advect_coarsest_passes(&AdvectOptions::keep_look()), 2);
+    assert_eq!(plan.advect_coarsest_passes(&AdvectOptions::default()), 1);
+    let swirl = SynthPlan::new(
+        &a,
+        &SynthParams {
+            field: Some(texsyn::Field::Swirl {
+                center: [20.0, 12.0],
+                radius: 10.0,
+                turns: 0.5,
+                scale: 1.0,
+            }),
+            ..params.clone()
+        },
+    )
+    .unwrap();
+    assert_eq!(swirl.advect_coarsest_passes(&AdvectOptions::keep_look()), 1);
     for sets_every in [1u32, 2, 4] {
         let o = AdvectOptions {
             sets_every,

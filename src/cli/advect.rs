@@ -66,8 +66,8 @@ pub struct AdvectArgs {
     /// The texture energy stays near frame 0's under a vortex, but the texture is
     /// continuously remade as it moves (over tens of frames most of it is new); a uniform
     /// flow still moves it exactly (where the field is constant). Every advected level is
-    /// corrected in full every frame (--correct-coherent implied), the coarsest twice
-    /// (--coarsest-passes 2). On a mesh or along a varying --field it remakes the detail
+    /// corrected in full every frame (--correct-coherent implied), in 2D the coarsest
+    /// twice (--coarsest-passes). On a mesh or along a varying --field it remakes the detail
     /// almost everywhere and pops: use the default there. Without it the texture is
     /// advected (the paper's scheme) and breaks up as it turns
     #[arg(long, conflicts_with_all = ["advect_finest", "resynthesize"])]
@@ -166,8 +166,10 @@ pub struct AdvectArgs {
     /// Correction passes per frame of the coarsest advected level (where it is not the
     /// second-finest), 0..=16. It is small: with --keep-look a second pass there
     /// settles the renewals (gravel, vortex, 300 frames: 1.14% of the blocks popping at
-    /// x1.00 of frame 0's texture energy, against 1.61% at x1.12)
-    /// [default: --passes; with --keep-look 2, or --passes if that is 0 or larger]
+    /// x1.00 of frame 0's texture energy, against 1.61% at x1.12), but on a mesh or
+    /// along a varying --field more passes there pop more [default: with --keep-look in
+    /// 2D without a field or with a constant one 2 (or --passes if 0 or larger), else
+    /// --passes]
     #[arg(long, value_name = "N")]
     pub coarsest_passes: Option<u32>,
 
@@ -513,11 +515,7 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
         levels: args.levels.unwrap_or(preset.levels),
         threshold: args.threshold.unwrap_or(preset.threshold),
         passes: args.passes,
-        coarsest_passes: args.coarsest_passes.or(if args.passes == 0 {
-            None
-        } else {
-            preset.coarsest_passes.map(|c| c.max(args.passes))
-        }),
+        coarsest_passes: args.coarsest_passes,
         nearest: !args.bilinear,
         interpolate_sets: args.interpolate_sets,
         quarter_reads: !args.exact_reads,

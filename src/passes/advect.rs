@@ -340,13 +340,20 @@ pub struct AdvectOptions {
     /// already nearly right: one pass keeps the cost at a fraction of a synthesis).
     pub passes: u32,
     /// Correction passes per frame of the coarsest advected level, where it is not the
-    /// most corrected one (`None`: `passes`). It holds a sixteenth of that level's pixels
-    /// or fewer, so a second pass there costs little, and [`Self::keep_look`] takes 2: the
-    /// renewals (upsampled from the levels above, or continuing an anchor) settle into
-    /// their surroundings before the finer levels are remade from them (fifty-sixth
-    /// session, gravel under the vortex, 300 frames: 1.14% of the 8x8 blocks popping per
-    /// frame at x1.00 of frame 0's texture energy, against 1.61% at x1.12 with one pass;
-    /// two passes on both coarser levels 1.28%, for more time; README, *Advection*).
+    /// most corrected one. `None` (default): with [`Self::keep_look`] and a desired
+    /// Jacobian that is the same everywhere (no atlas; no field, or a constant one), 2 (or
+    /// `passes` if that is 0 or more), else `passes` ([`SynthPlan::advect_coarsest_passes`]).
+    /// The level holds a sixteenth of the most corrected level's pixels or fewer, so a
+    /// second pass there costs little: the renewals (upsampled from the levels above, or
+    /// continuing an anchor) settle into their surroundings before the finer levels are
+    /// remade from them (fifty-sixth session, gravel under the vortex, 300 frames: 1.14% of
+    /// the 8x8 blocks popping per frame at x1.00 of frame 0's texture energy, against 1.61%
+    /// at x1.12 with one pass; two passes on both coarser levels 1.28%, for more time).
+    /// Where the Jacobian varies the level is renewed all over and more passes churn it:
+    /// the bunny's atlas under the vortex popped 19.3% with two, 10.7% with one; along a
+    /// `swirl` field 5.7% against 3.4% (README, *Advection*).
+    ///
+    /// [`SynthPlan::advect_coarsest_passes`]: super::plan::SynthPlan::advect_coarsest_passes
     pub coarsest_passes: Option<u32>,
     /// Gather the exemplar texel nearest to each coordinate instead of interpolating.
     /// Sub-pixel motion makes the coordinates fractional everywhere, so interpolating
@@ -501,7 +508,7 @@ impl AdvectOptions {
     /// since the fifty-fourth session, with the similarity sets on every fourth
     /// correction (`sets_every: 4`) at every advected level, 23-33% against 25-30%.
     /// Since the fifty-sixth session the coarsest advected level runs two correction
-    /// passes per frame ([`Self::coarsest_passes`]): gravel 1.14% of the 8x8 blocks
+    /// passes per frame where `J` is constant ([`Self::coarsest_passes`]): gravel 1.14% of the 8x8 blocks
     /// popping per frame at x1.00 of frame 0's energy at frame 300, against 1.61% at
     /// x1.12; brick x0.80, grass x0.83, pink_marble x0.95, craters x0.83.
     /// Anchored renewals ([`Self::anchor_spacing`]) pop less with it on the stochastic
@@ -511,16 +518,9 @@ impl AdvectOptions {
             levels: 4,
             threshold: 0.12,
             sets_every: 4,
-            coarsest_passes: Some(2),
             keep_look: true,
             ..Self::default()
         }
-    }
-
-    /// The correction passes per frame of the coarsest advected level where it is not
-    /// the most corrected one ([`Self::coarsest_passes`], else `passes`).
-    pub fn level_coarsest_passes(&self) -> u32 {
-        self.coarsest_passes.unwrap_or(self.passes)
     }
 
     /// [`PassParams::anchor`] for the coarsest advected level's distortion pass: the
@@ -560,7 +560,7 @@ impl AdvectOptions {
         if !self.threshold.is_finite()
             || self.threshold <= 0.0
             || self.passes > 16
-            || self.level_coarsest_passes() > 16
+            || self.coarsest_passes.is_some_and(|c| c > 16)
             || !(1..=16).contains(&self.sets_every)
         {
             return Err(Error::InvalidParameter(format!(
@@ -569,7 +569,8 @@ impl AdvectOptions {
                  passes and sets every 1-16 corrections",
                 self.threshold,
                 self.passes,
-                self.level_coarsest_passes(),
+                self.coarsest_passes
+                    .map_or("automatic".into(), |c| c.to_string()),
                 self.sets_every
             )));
         }

@@ -1029,10 +1029,27 @@ impl SynthPlan {
         frame_plan
     }
 
+    /// The correction passes per frame of the coarsest advected level where it is not the
+    /// most corrected one: [`super::advect::AdvectOptions::coarsest_passes`], or where it
+    /// is `None`, 2 (at least `passes`, none with none) with `keep_look` where the
+    /// desired Jacobian is the same everywhere (no atlas; no field or a constant one), else
+    /// `passes`.
+    pub fn advect_coarsest_passes(&self, options: &super::advect::AdvectOptions) -> u32 {
+        let constant_j = self.params.surface.is_none()
+            && matches!(self.params.field, None | Some(Field::Constant { .. }));
+        options.coarsest_passes.unwrap_or(
+            if options.keep_look && constant_j && options.passes > 0 {
+                options.passes.max(2)
+            } else {
+                options.passes
+            },
+        )
+    }
+
     /// The synthesis schedule a frame takes its levels' corrections from (no skipping):
     /// the frames' `passes` at every level but the coarsest advected one, `coarsest`,
-    /// which takes [`super::advect::AdvectOptions::coarsest_passes`] where it is not the
-    /// most corrected level `top`.
+    /// which takes [`Self::advect_coarsest_passes`] where it is not the most corrected
+    /// level `top`.
     fn frame_synthesis(
         &self,
         analysis: &Analysis,
@@ -1043,7 +1060,7 @@ impl SynthPlan {
         let full = self
             .frame_plan(options)
             .schedule_inner(analysis, false, false);
-        let coarse = options.level_coarsest_passes();
+        let coarse = self.advect_coarsest_passes(options);
         if coarse == options.passes || coarsest >= top {
             return full;
         }
@@ -1182,7 +1199,7 @@ impl SynthPlan {
             // veins stay), for a per-frame cost of 48-50% of a synthesis at 512x512 on
             // lavapipe instead of 53-56%.
             let passes = if level == coarsest && level < top {
-                options.level_coarsest_passes()
+                self.advect_coarsest_passes(options)
             } else {
                 passes
             };
