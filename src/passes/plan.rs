@@ -1203,13 +1203,16 @@ impl SynthPlan {
             } else {
                 passes
             };
-            // Subpasses per pass (4, more on a periodic level of odd size).
-            let per_pass = (full
+            // Subpasses per pass: the parity classes (4, more on a periodic level of odd
+            // size; a level without similarity sets of its own may run fewer passes).
+            let mut classes: Vec<[i32; 2]> = full
                 .iter()
                 .filter(|d| d.level == level && d.kind == PassKind::CorrectAniso)
-                .count() as u64
-                / passes.max(1) as u64)
-                .max(1);
+                .map(|d| d.params.parity)
+                .collect();
+            classes.sort_unstable();
+            classes.dedup();
+            let per_pass = (classes.len() as u64).max(1);
             let mut subpass = 0u64;
             let mut keep_fill = true;
             for d in full.iter().filter(|d| d.level == level) {
@@ -1248,7 +1251,7 @@ impl SynthPlan {
                             // 0.20% at x1.17, the coarser corrections about a third
                             // cheaper; brick and grass alike).
                             // With more passes per frame (a keep-look level's
-                            // `coarse_passes`), the same over the level's corrections:
+                            // `coarsest_passes`), the same over the level's corrections:
                             // class c's correction in pass p of frame f is its
                             // (f * passes + p)-th.
                             let every = frame_plan.params.sets_every as u64;
