@@ -333,23 +333,13 @@ impl Staging {
     /// they are moved in. It must take new files, no frame's name may be taken by a
     /// folder, and no input may be one of its frames (this run replaces them).
     fn check_existing(target: &Path, inputs: &[(&str, &Path)]) -> CliResult<()> {
-        let probe = target.join(format!(".texsyn-probe-{}", std::process::id()));
-        match std::fs::OpenOptions::new()
-            .write(true)
-            .create_new(true)
-            .open(&probe)
-        {
-            Ok(_) => {
-                let _ = std::fs::remove_file(&probe);
-            }
-            Err(e) => {
-                return Err(fail(format!(
-                    "cannot write the frames into {}: it does not take new files ({e}); \
-                     choose a writable folder",
-                    target.display()
-                )))
-            }
-        }
+        super::takes_new_files(target).map_err(|e| {
+            fail(format!(
+                "cannot write the frames into {}: it does not take new files ({e}); choose \
+                 a writable folder",
+                target.display()
+            ))
+        })?;
         let entries = std::fs::read_dir(target)
             .map_err(|e| fail(format!("cannot read the folder {}: {e}", target.display())))?;
         for entry in entries.flatten() {

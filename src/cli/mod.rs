@@ -528,24 +528,24 @@ pub fn check_output_dir(path: &Path) -> CliResult<()> {
     // Probe that the directory takes new files (read-only mounts, /proc, permissions):
     // failing now costs nothing, failing after the work would leave other outputs half
     // written.
+    takes_new_files(&dir).map_err(|e| {
+        fail(format!(
+            "cannot write {}: the directory {} does not take new files ({e}); choose a \
+             writable folder",
+            path.display(),
+            dir.display()
+        ))
+    })
+}
+
+/// Whether `dir` takes new files: a probe file is created and removed.
+pub fn takes_new_files(dir: &Path) -> std::io::Result<()> {
     let probe = dir.join(format!(".texsyn-probe-{}", std::process::id()));
-    match std::fs::OpenOptions::new()
+    std::fs::OpenOptions::new()
         .write(true)
         .create_new(true)
-        .open(&probe)
-    {
-        Ok(_) => {
-            let _ = std::fs::remove_file(&probe);
-        }
-        Err(e) => {
-            return Err(fail(format!(
-                "cannot write {}: the directory {} does not take new files ({e}); \
-                 choose a writable folder",
-                path.display(),
-                dir.display()
-            )))
-        }
-    }
+        .open(&probe)?;
+    let _ = std::fs::remove_file(&probe);
     Ok(())
 }
 
