@@ -1,9 +1,10 @@
 #!/usr/bin/env python3
 """Regenerates docs/advection_resynthesize.png (README, Advection): frame 300 of the default
-vortex, 256x256, with the levels below the finest advected (the default), with `--keep-look`
-(the advected levels below the coarsest one remade wherever the flow turns them, the coarsest
-renewed where it has turned by about 5 degrees), with `--keep-look --fade 1` (pops shown
-blended for a frame) and with `--keep-look --fade 2` (blended over two frames), for the
+vortex, 256x256, with the levels below the finest advected (`--carry`, the paper's scheme),
+with `--keep-look --fade 0` (the advected levels below the coarsest one remade wherever the
+flow turns them, the coarsest renewed where it has turned by about 5 degrees), with
+`--keep-look --fade 1` (pops shown blended for a frame) and with `--keep-look --fade 2`
+(blended over two frames; the default in 2D), for the
 bundled brick and gravel; next to each, where frame 300 differs from
 frame 299 moved by the flow (white: a change of 1/3 of full scale or more), which is the
 popping `--keep-look` costs and `--fade` spreads over frames.
@@ -20,9 +21,9 @@ import numpy as np
 from PIL import Image, ImageDraw
 
 EXEMPLARS = ["brick", "gravel"]
-CONFIGS = [("default", []), ("--keep-look", ["--keep-look"]),
+CONFIGS = [("--carry", ["--carry"]), ("--keep-look --fade 0", ["--keep-look", "--fade", "0"]),
            ("--keep-look --fade 1", ["--keep-look", "--fade", "1"]),
-           ("--keep-look --fade 2", ["--keep-look", "--fade", "2"])]
+           ("--fade 2 (default)", ["--keep-look", "--fade", "2"])]
 SIZE, GAP, LABEL, OMEGA = 256, 8, 14, 0.01
 BIN = os.environ.get("TEXSYN", "target/release/texsyn")
 

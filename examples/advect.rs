@@ -2,8 +2,9 @@
 //! the application owns the device, the queue and a GPU velocity buffer it updates
 //! every frame (here a vortex whose speed changes over time) and its own, uneven, time
 //! steps; texsyn records each frame into the application's command encoder and leaves
-//! the texture on the GPU. Halfway the application changes the options (keeping the
-//! look) and the parameters (less randomness, more coherence) without starting over.
+//! the texture on the GPU. Halfway the application changes the options (a shorter fade
+//! of the renewals) and the parameters (less randomness, more coherence) without
+//! starting over.
 //! Nothing is read back except the frames this example saves to show the result.
 //!
 //! ```text
@@ -57,10 +58,12 @@ fn main() -> texsyn::Result<()> {
         seed: 4,
         ..SynthParams::default()
     };
-    // The default advects the texture (it turns with the vortex and slowly breaks up);
-    // from frame 31 `AdvectOptions::keep_look()` keeps its look by remaking it as it
-    // turns (README, *Advection*).
-    let mut advection = Advection::new(&ctx, synthesizer, &params, AdvectOptions::default())?;
+    // The options recommended for these parameters: in 2D without a field, the texture
+    // keeps its look under the turning flow (remade as it turns, renewals faded over two
+    // frames); on an atlas or along a varying field it would be carried as the paper
+    // does (README, *Advection*).
+    let options = AdvectOptions::recommended(&params);
+    let mut advection = Advection::new(&ctx, synthesizer, &params, options)?;
 
     // The application's velocity buffer (vec2<f32> per pixel), updated every frame (a
     // velocity texture, e.g. a fluid simulation's Rg32Float output, goes to
@@ -73,7 +76,8 @@ fn main() -> texsyn::Result<()> {
     });
     for frame in 1..=60u32 {
         if frame == 31 {
-            advection.set_options(&ctx, AdvectOptions::keep_look())?;
+            // Renewals faded over one frame: a lower texture energy, a little more popping.
+            advection.set_options(&ctx, AdvectOptions { fade: 1, ..options })?;
             // Less randomness (larger patches, more repeats) and more coherence. The
             // frames do not jitter: the levels above the advected ones are made again
             // with the new parameters, and the texture takes them on where the frames

@@ -1278,6 +1278,76 @@ fn review_findings_fail_cleanly() {
         2,
         "cannot be used with",
     );
+    // The scheme by default: the look kept (faded over 2 frames) in 2D without a field or
+    // with a constant one, the texture carried along a varying field; --carry and
+    // --keep-look choose. The default's frames are --keep-look --fade 2's, byte for byte.
+    let frames_of = |out: &str, extra: &[&str]| -> (String, Vec<Vec<u8>>) {
+        let mut a = vec![
+            "advect", GRAVEL, "--flow", "vortex", "--frames", "2", "--size", "24", "-o", out,
+        ];
+        a.extend_from_slice(extra);
+        let o = texsyn(&dir, &a);
+        let stderr = text(&o.stderr);
+        assert!(o.status.success(), "{a:?}: {stderr}");
+        let bytes = (0..=2)
+            .map(|t| std::fs::read(dir.path(&format!("{out}/frame_{t:05}.png"))).unwrap())
+            .collect();
+        let scheme = stderr
+            .lines()
+            .find(|l| l.starts_with("advection: "))
+            .unwrap_or_else(|| panic!("{a:?}: no scheme line: {stderr}"))
+            .to_string();
+        (scheme, bytes)
+    };
+    let (auto, auto_frames) = frames_of("auto", &[]);
+    assert!(
+        auto.contains("keeping the look, renewals faded over 2 frames"),
+        "{auto}"
+    );
+    assert!(auto.contains("the default here"), "{auto}");
+    let (asked, asked_frames) = frames_of("asked", &["--keep-look", "--fade", "2"]);
+    assert!(
+        asked.contains("keeping the look") && !asked.contains("default"),
+        "{asked}"
+    );
+    assert_eq!(auto_frames, asked_frames);
+    let (rotated, _) = frames_of("rotated", &["--field", "rotate:30"]);
+    assert!(rotated.contains("keeping the look"), "{rotated}");
+    let (unfaded, unfaded_frames) = frames_of("unfaded", &["--fade", "0"]);
+    assert!(unfaded.contains("renewals not faded"), "{unfaded}");
+    assert_eq!(auto_frames[0], unfaded_frames[0]);
+    assert_ne!(auto_frames[2], unfaded_frames[2]);
+    let (carried, carried_frames) = frames_of("carried", &["--carry"]);
+    assert!(
+        carried.contains("carrying the texture (the paper's scheme, --carry)"),
+        "{carried}"
+    );
+    assert_ne!(auto_frames[0], carried_frames[0]);
+    let (swirl, _) = frames_of("swirl", &["--field", "swirl"]);
+    assert!(
+        swirl.contains("carrying the texture") && swirl.contains("varying field"),
+        "{swirl}"
+    );
+    let (forced, _) = frames_of("forced", &["--field", "swirl", "--keep-look"]);
+    assert!(
+        forced.contains("renewals faded over 2 frames (--keep-look)"),
+        "{forced}"
+    );
+    fails(
+        &dir,
+        &[
+            "advect",
+            GRAVEL,
+            "--flow",
+            "vortex",
+            "--keep-look",
+            "--carry",
+            "-o",
+            "frames",
+        ],
+        2,
+        "cannot be used with",
+    );
     fails(
         &dir,
         &[

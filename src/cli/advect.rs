@@ -62,16 +62,27 @@ pub struct AdvectArgs {
     /// Keep the texture's look under turning and divergent flows: remake the advected
     /// levels below the coarsest one wherever the flow turns or stretches them, and renew
     /// the coarsest where it has turned or stretched by about 5 degrees or 12% (--levels 4
-    /// --threshold 0.12, the coarsest level's threshold here; both can still be given).
-    /// The texture energy stays near frame 0's under a vortex, but the texture is
-    /// continuously remade as it moves (over tens of frames most of it is new); a uniform
-    /// flow still moves it exactly (where the field is constant). Every advected level is
-    /// corrected in full every frame (--correct-coherent implied), in 2D the coarsest
-    /// twice (--coarsest-passes). On a mesh or along a varying --field it remakes the detail
-    /// almost everywhere and pops: use the default there. Without it the texture is
-    /// advected (the paper's scheme) and breaks up as it turns
-    #[arg(long, conflicts_with_all = ["advect_finest", "resynthesize"])]
+    /// --threshold 0.12, the coarsest level's threshold here; both can still be given),
+    /// fading what it renews over --fade 2 frames. The texture energy stays near frame
+    /// 0's under a vortex, but the texture is continuously remade as it moves (over tens
+    /// of frames most of it is new); a uniform flow still moves it exactly (where the
+    /// field is constant). Every advected level is corrected in full every frame
+    /// (--correct-coherent implied), in 2D the coarsest twice (--coarsest-passes). The
+    /// default in 2D without a field or with a constant one; on a mesh or along a varying
+    /// --field it remakes the detail almost everywhere and pops, and the default there is
+    /// --carry
+    #[arg(long, conflicts_with_all = ["advect_finest", "resynthesize", "carry"])]
     pub keep_look: bool,
+
+    /// Carry the texture with the flow (the paper's scheme): the coordinates move with
+    /// the flow, only pixels distorted beyond --threshold are renewed, and one correction
+    /// pass keeps the texture intact. The default on a mesh or along a varying --field,
+    /// where it pops far less than --keep-look (bunny's atlas, vortex: 0.04% of the 8x8
+    /// blocks per frame against 10.7%); in 2D under a turning flow it breaks the texture
+    /// up (gravel, 300 frames of the vortex: texture energy x2.5 frame 0's). Also implied
+    /// by --advect-finest and --resynthesize
+    #[arg(long)]
+    pub carry: bool,
 
     /// Fade pops in over N frames (0: off): where a pixel's texture changes other than by
     /// moving with the flow (a renewed patch and the detail remade under it), its old
@@ -80,14 +91,10 @@ pub struct AdvectArgs {
     /// (0.175% of the 8x8 blocks per frame) for a texture energy of x1.06 frame 0's at
     /// frame 300 (x1.00 without), --fade 2 20x less (0.058%) at x1.17; about 10 ms more
     /// per 512x512 frame on lavapipe (its pass, 12-16 ms, replaces the 3 ms gather). A
-    /// uniform flow of whole pixels is unaffected
-    #[arg(
-        long,
-        value_name = "N",
-        default_value_t = 0,
-        allow_hyphen_values = true
-    )]
-    pub fade: u32,
+    /// uniform flow of whole pixels is unaffected [default: 2 with --keep-look (the default
+    /// in 2D), else 0]
+    #[arg(long, value_name = "N", allow_hyphen_values = true)]
+    pub fade: Option<u32>,
 
     /// With --fade: how much the jumps around a pixel that jumped must change the colour
     /// on average (of 255, over its 3x3 neighbourhood) for it to fade (0-255). Lower fades
@@ -496,7 +503,13 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
     };
     let flow = args.flow.load()?;
     flow.validate()?;
-    let preset = if args.keep_look {
+    // --keep-look where asked for, and by default where the desired Jacobian is the same
+    // everywhere (AdvectOptions::recommended): 2D, no field or a constant one.
+    let constant_j =
+        args.mesh.is_none() && matches!(args.field, None | Some(FieldSpec::Constant { .. }));
+    let keep_look = args.keep_look
+        || (constant_j && !args.carry && !args.advect_finest && args.resynthesize == 0);
+    let preset = if keep_look {
         AdvectOptions::keep_look()
     } else {
         AdvectOptions::default()
@@ -513,8 +526,12 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
         sets_every: args.sets_every.unwrap_or(preset.sets_every),
         upsample_finest: !args.advect_finest,
         resynthesize: args.resynthesize,
-        keep_look: args.keep_look,
-        fade: args.fade,
+        keep_look,
+        fade: args.fade.unwrap_or(if keep_look {
+            texsyn::passes::advect::KEEP_LOOK_FADE
+        } else {
+            0
+        }),
         fade_change: args.fade_change,
         anchor_spacing: args.anchor,
         anchor_upsample: args.anchor_upsample,
@@ -531,6 +548,34 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
     let source = read_source(ui, &args.exemplar, None, args.tile.get())?;
     let ctx = GpuContext::headless()?;
     ui.info(format!("adapter: {}", ctx.describe()));
+    ui.info(if keep_look {
+        format!(
+            "advection: keeping the look, {} (--keep-look{})",
+            match options.fade {
+                0 => "renewals not faded".to_string(),
+                n => format!(
+                    "renewals faded over {n} frame{}",
+                    if n == 1 { "" } else { "s" }
+                ),
+            },
+            if args.keep_look {
+                ""
+            } else {
+                "; the default here, --carry carries the texture instead"
+            }
+        )
+    } else {
+        format!(
+            "advection: carrying the texture (the paper's scheme{})",
+            if constant_j && !args.carry {
+                ", with --advect-finest or --resynthesize"
+            } else if constant_j {
+                ", --carry"
+            } else {
+                ", the default on a mesh or along a varying field"
+            }
+        )
+    });
     let size_hint = if args.mesh.is_some() {
         "advection keeps the whole atlas in one synthesis: give a smaller --atlas-size"
     } else {
@@ -794,12 +839,12 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
         ));
         // Measured (gravel, vortex, 300 frames): on the bunny's atlas 10.7% with
         // --keep-look against 0.04% without; along a 2D swirl field 3.4% against 0.00%.
-        if args.keep_look && pops > 0.02 && (args.mesh.is_some() || args.field.is_some()) {
+        if keep_look && pops > 0.02 && !constant_j {
             ui.info(
                 "  --keep-look remakes the fine detail wherever the desired Jacobian changes \
                  along the flow, which on a mesh's atlas or along a varying --field is almost \
-                 everywhere: without it the texture is carried and pops far less there; \
-                 --fade 1 blends the pops (README, Advection)",
+                 everywhere: without it (--carry, the default there) the texture is carried \
+                 and pops far less (README, Advection)",
             );
         }
     }
@@ -820,11 +865,17 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
         ),
         None => format!("texture energy: {}", energies.join(", ")),
     });
-    if let Some(r) = rise.filter(|&r| r > 1.2 && !args.keep_look) {
+    if let Some(r) = rise.filter(|&r| r > 1.2 && !keep_look) {
         ui.info(format!(
             "  the texture energy rose {r:.2}x: the flow breaks the texture up as it turns or \
-             stretches it; --keep-look remakes it as it moves and keeps its look, and \
-             --fade 2 blends what it renews (README, Advection)"
+             stretches it; {} (README, Advection)",
+            if constant_j {
+                "--keep-look (the default here, unless --carry, --advect-finest or \
+                 --resynthesize is given) remakes it as it moves and keeps its look"
+            } else {
+                "--keep-look remakes it as it moves and keeps its look, but pops on a mesh or \
+                 along a varying field"
+            }
         ));
     }
     ui.info(format!(

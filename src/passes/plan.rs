@@ -132,6 +132,13 @@ impl SynthParams {
     pub fn anisometric(&self) -> bool {
         self.field.is_some() || self.surface.is_some()
     }
+
+    /// Whether the desired Jacobian is the same everywhere: no atlas, and no field or a
+    /// constant one. Advection keeps a texture's look under turning flows only there
+    /// ([`super::advect::AdvectOptions::recommended`]).
+    pub fn constant_jacobian(&self) -> bool {
+        self.surface.is_none() && matches!(self.field, None | Some(Field::Constant { .. }))
+    }
 }
 
 /// Neighbourhood distance of the correction (see `passes/correct.rs`).
@@ -1035,10 +1042,8 @@ impl SynthPlan {
     /// desired Jacobian is the same everywhere (no atlas; no field or a constant one), else
     /// `passes`.
     pub fn advect_coarsest_passes(&self, options: &super::advect::AdvectOptions) -> u32 {
-        let constant_j = self.params.surface.is_none()
-            && matches!(self.params.field, None | Some(Field::Constant { .. }));
         options.coarsest_passes.unwrap_or(
-            if options.keep_look && constant_j && options.passes > 0 {
+            if options.keep_look && self.params.constant_jacobian() && options.passes > 0 {
                 options.passes.max(2)
             } else {
                 options.passes
