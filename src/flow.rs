@@ -199,6 +199,30 @@ impl Flow {
         finite_velocities(v, t)
     }
 
+    /// The centre `[cx, cy]` of a vortex or a source (fractions of the output size).
+    pub fn centre(&self) -> Option<[f32; 2]> {
+        match self {
+            Flow::Vortex { cx, cy, .. }
+            | Flow::LambOseen { cx, cy, .. }
+            | Flow::Source { cx, cy, .. } => Some([*cx, *cy]),
+            _ => None,
+        }
+    }
+
+    /// The same flow centred at `c` (flows without a centre unchanged): on a mesh the
+    /// presets are centred on the mesh ([`crate::surface::flow::atlas_velocity`]), so the
+    /// CLI checks them with the output's middle instead of a centre they do not use.
+    pub fn with_centre(&self, c: [f32; 2]) -> Flow {
+        let mut f = self.clone();
+        if let Flow::Vortex { cx, cy, .. }
+        | Flow::LambOseen { cx, cy, .. }
+        | Flow::Source { cx, cy, .. } = &mut f
+        {
+            (*cx, *cy) = (c[0], c[1]);
+        }
+        f
+    }
+
     /// Checks that every parameter (or every velocity of a map) is finite;
     /// [`Error::InvalidParameter`] otherwise.
     pub fn validate(&self) -> Result<()> {

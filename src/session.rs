@@ -129,6 +129,8 @@ impl Session {
     /// made anisometric if they are not) on the session's device and exemplar; then call
     /// [`Advection::step`](crate::gpu::advect::Advection::step) or
     /// [`encode_step`](crate::gpu::advect::Advection::encode_step) once a frame.
+    /// [`AdvectOptions::recommended`](crate::gpu::advect::AdvectOptions::recommended)
+    /// with [`Self::params`] gives the options the CLI uses by default.
     pub fn advection(
         &self,
         options: crate::gpu::advect::AdvectOptions,

@@ -1915,6 +1915,68 @@ fn advect_sweep_findings_fail_early() {
         1,
         "time step",
     );
+    // On a mesh the presets turn about the mesh's centre: a centre given in the spec is
+    // not used, so a large one is not refused as pixels given by mistake.
+    let bunny = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/meshes/bunny.glb");
+    let out = texsyn(
+        &dir,
+        &[
+            "advect",
+            GRAVEL,
+            "--mesh",
+            bunny,
+            "--atlas-size",
+            "32",
+            "--flow",
+            "vortex:10,10,0.02",
+            "--frames",
+            "1",
+            "-o",
+            "mesh-centre",
+        ],
+    );
+    let stderr = text(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("centre 10,10 is not used on a mesh"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("carrying the texture"), "{stderr}");
+    assert!(dir.path("mesh-centre/frame_00001.png").exists());
+    // A flat exemplar has no sharpness to measure: said so, not printed as NaN.
+    image::RgbImage::from_pixel(24, 24, image::Rgb([120, 80, 40]))
+        .save(dir.path("flat.png"))
+        .unwrap();
+    let flat = dir.path("flat.png");
+    let out = texsyn(
+        &dir,
+        &[
+            "advect",
+            flat.to_str().unwrap(),
+            "--flow",
+            "vortex",
+            "--frames",
+            "2",
+            "--size",
+            "16",
+            "-o",
+            "flat-frames",
+        ],
+    );
+    let stderr = text(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(stderr.contains("sharpness: not measurable"), "{stderr}");
+    assert!(!stderr.contains("NaN"), "{stderr}");
+    // A step beyond f32 is named as too large, not as `inf`.
+    for cmd in [
+        advect(&["--flow", "vortex", "--dt", "1e39", "-o", "big-step"]),
+        ["eval", GRAVEL, "good", "--flow", "vortex", "--dt", "1e39"]
+            .map(String::from)
+            .to_vec(),
+    ] {
+        let args: Vec<&str> = cmd.iter().map(|s| s.as_str()).collect();
+        fails(&dir, &args, 1, "--dt 1e39: too large for 32-bit floats");
+    }
     // Rates that overflow when sampled are refused up front, in advect and eval.
     // (A core radius makes the parser check the spec: a usage error.)
     for (spec, code) in [

@@ -53,7 +53,7 @@ pub struct AdvectArgs {
 
     /// Time step: a frame moves the texture by velocity * dt
     #[arg(long, default_value_t = 1.0, allow_hyphen_values = true)]
-    pub dt: f32,
+    pub dt: f64,
 
     /// Write every K-th frame only
     #[arg(long, value_name = "K", default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
@@ -465,12 +465,7 @@ enum Sink {
 }
 
 pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
-    if !args.dt.is_finite() || args.dt <= 0.0 {
-        return Err(fail(format!(
-            "--dt {}: the time step must be a positive number",
-            args.dt
-        )));
-    }
+    let dt = super::time_step(args.dt)?;
     let ext = args
         .output
         .extension()
@@ -501,7 +496,19 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
         staging = Some(s);
         Sink::Folder(dir)
     };
-    let flow = args.flow.load()?;
+    let mut flow = args.flow.load()?;
+    if args.mesh.is_some() {
+        // On a mesh a vortex or a source turns about the mesh's centre: a centre given in
+        // the spec is not used, so it is neither checked nor kept.
+        if let Some(c) = flow.centre().filter(|c| *c != [0.5, 0.5]) {
+            ui.info(format!(
+                "note: the flow's centre {},{} is not used on a mesh (its vortex or source is \
+                 centred on the mesh's centre)",
+                c[0], c[1]
+            ));
+            flow = flow.with_centre([0.5, 0.5]);
+        }
+    }
     flow.validate()?;
     // --keep-look where asked for, and by default where the desired Jacobian is the same
     // everywhere (AdvectOptions::recommended): 2D, no field or a constant one.
@@ -741,13 +748,13 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
         let v = velocity_at(t)?;
         let start = Instant::now();
         if args.per_pass {
-            passes.push(adv.profile_step(&ctx, &v, args.dt)?);
+            passes.push(adv.profile_step(&ctx, &v, dt)?);
         } else {
-            adv.step(&ctx, &v, args.dt)?;
+            adv.step(&ctx, &v, dt)?;
         }
         ctx.wait_idle()?;
         costs.push(start.elapsed());
-        emit(&adv, t, &displacement(&v, args.dt), &mut figures)?;
+        emit(&adv, t, &displacement(&v, dt), &mut figures)?;
         if t % FULL_EVERY == 0 {
             full.push(time_full()?);
         }
@@ -878,11 +885,16 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
             }
         ));
     }
-    ui.info(format!(
-        "sharpness (high-frequency energy / exemplar's): first {:.3}, last {:.3}",
-        report.sharpness.first().copied().unwrap_or(0.0),
-        report.sharpness.last().copied().unwrap_or(0.0)
-    ));
+    let (first, last) = (
+        report.sharpness.first().copied().unwrap_or(f64::NAN),
+        report.sharpness.last().copied().unwrap_or(f64::NAN),
+    );
+    ui.info(if first.is_finite() && last.is_finite() {
+        format!("sharpness (high-frequency energy / exemplar's): first {first:.3}, last {last:.3}")
+    } else {
+        "sharpness: not measurable (the exemplar has no high frequencies to compare with)"
+            .to_string()
+    });
     Ok(())
 }
 

@@ -79,7 +79,7 @@ pub struct EvalArgs {
         requires = "flow",
         allow_hyphen_values = true
     )]
-    pub dt: f32,
+    pub dt: f64,
 
     /// With --flow: texture energy (of 5x5 windows, as `texsyn advect` prints it; plain
     /// eval's is of 7x7) on the first frame, every K-th from frame 0 and the last; 0: the
@@ -290,12 +290,7 @@ fn temporal(
     exemplar: &texsyn::Exemplar,
     flow: &texsyn::flow::Flow,
 ) -> CliResult<()> {
-    if !args.dt.is_finite() || args.dt <= 0.0 {
-        return Err(fail(format!(
-            "--dt {}: the time step must be a positive number",
-            args.dt
-        )));
-    }
+    let dt = super::time_step(args.dt)?;
     if !args.image.is_dir() {
         return Err(fail(format!(
             "{}: with --flow, give the folder of frames `texsyn advect -o FOLDER` wrote",
@@ -366,7 +361,7 @@ fn temporal(
             )));
         }
         let v = flow.sample(w, h, t as f32)?;
-        figures.push(frame, &super::advect::displacement(&v, args.dt))?;
+        figures.push(frame, &super::advect::displacement(&v, dt))?;
     }
     let frames = paths.len();
     let report = figures.finish()?;

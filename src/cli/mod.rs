@@ -346,6 +346,25 @@ impl Ui {
 // Value parsers and helpers shared by the subcommands
 // ---------------------------------------------------------------------------------------
 
+/// `--dt` of `advect` and `eval --flow`, read as f64 so that a step too large for the
+/// frames' f32 arithmetic is named as such (as f32 it would read as `inf`).
+pub fn time_step(dt: f64) -> CliResult<f32> {
+    if dt.is_nan() || dt <= 0.0 {
+        return Err(fail(format!(
+            "--dt {dt}: the time step must be a positive number"
+        )));
+    }
+    if dt > f32::MAX as f64 {
+        return Err(fail(format!(
+            "--dt {dt:e}: too large for 32-bit floats (at most {:e}; a frame moves at most {} \
+             pixels anyway)",
+            f32::MAX,
+            texsyn::passes::advect::MAX_SPEED
+        )));
+    }
+    Ok(dt as f32)
+}
+
 /// A seed: an integer in `0..=u32::MAX`. Negative and other values get a message
 /// naming the range (clap's default for `u32` says only "invalid digit").
 pub fn parse_seed(s: &str) -> Result<u32, String> {

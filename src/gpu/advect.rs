@@ -64,6 +64,11 @@ pub struct Advection {
     remake_static: bool,
 }
 
+/// Frames whose schedules [`Advection::new`] and [`Advection::set_options`] build the
+/// pipelines of: the subpasses and the similarity sets rotate with periods of 2, 4 and
+/// `sets_every` (at most 16) frames.
+const PREPARED_FRAMES: u64 = 16;
+
 impl Advection {
     /// Synthesizes frame 0 of `params` (an isometric plan is run with the identity
     /// field: advection needs continuous coordinates).
@@ -157,6 +162,7 @@ impl Advection {
         let schedule = this
             .plan
             .advect_first_schedule(this.synthesizer.analysis(), &this.options);
+        this.prepare_frames(ctx, &this.options, &schedule)?;
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
         this.record(ctx, &mut encoder, &schedule, true)?;
         ctx.scoped(|| ctx.queue.submit([encoder.finish()]))?;
@@ -283,7 +289,7 @@ impl Advection {
     /// levels' regions stay (refused otherwise, as in [`Self::set_params`]). The analysis is the slow part (build it
     /// ahead, e.g. one per weight a host wants to blend through); the swap itself only
     /// checks and, where the frames read them, builds the new analysis's quarter-pixel
-    /// tables.
+    /// tables, and the pipelines of its frames that are not built yet.
     pub fn set_synthesizer(
         &mut self,
         ctx: &GpuContext,
@@ -335,7 +341,8 @@ impl Advection {
         }
         self.synthesizer = synthesizer;
         self.plan = plan;
-        Ok(())
+        let options = self.options;
+        self.prepare_frames(ctx, &options, &[])
     }
 
     /// The synthesizer (exemplar analysis) the frames correct against.
@@ -382,8 +389,30 @@ impl Advection {
         if self.options.fade <= 1 && options.fade > 1 {
             self.fade_state = false;
         }
+        self.prepare_frames(ctx, &options, &[])?;
         self.options = options;
         Ok(())
+    }
+
+    /// Builds the pipelines the frames with `options` dispatch (and those of `extra`)
+    /// now, so that the first frames do not stall on them: they were 0.2 s of frame 1
+    /// at 128x128 on lavapipe (a host application's frame loop would drop frames). The
+    /// subpasses rotate over the frames, whose schedules repeat within
+    /// [`PREPARED_FRAMES`].
+    fn prepare_frames(
+        &self,
+        ctx: &GpuContext,
+        options: &AdvectOptions,
+        extra: &[Dispatch],
+    ) -> Result<()> {
+        let analysis = self.synthesizer.analysis();
+        let mut schedule = extra.to_vec();
+        schedule.extend(self.plan.advect_static_schedule(analysis, options));
+        for frame in 1..=PREPARED_FRAMES {
+            schedule.extend(self.plan.advect_schedule(analysis, options, frame));
+        }
+        self.synthesizer
+            .prepare_schedule(ctx, &self.plan, &schedule)
     }
 
     /// Whether `plan` computes the same regions at every level as the current one (the

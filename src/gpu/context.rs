@@ -288,6 +288,16 @@ impl GpuContext {
             .prepare_plan(self, analysis, params, |_| Ok(()))
     }
 
+    /// How many pass pipelines (a pass's shader with one set of constants) texsyn has
+    /// built on this context so far. Each takes milliseconds to tens of milliseconds to
+    /// build, so a host can check that its frame loop builds none (they are built by
+    /// [`Self::prepare_pipelines`], [`Self::prepare_synthesis`],
+    /// [`GpuSynthesizer::prepare`](crate::GpuSynthesizer::prepare) and
+    /// [`Advection::new`](crate::Advection::new), or on first use).
+    pub fn built_pipelines(&self) -> usize {
+        self.pipelines.get().map_or(0, |p| p.built())
+    }
+
     /// One line about the adapter, e.g.
     /// `llvmpipe (LLVM 15.0.6, 256 bits) [Vulkan, Cpu, driver: llvmpipe Mesa 22.3.6 (LLVM 15.0.6)]`.
     pub fn describe(&self) -> String {

@@ -410,6 +410,12 @@ struct LazyPipeline {
 }
 
 impl LazyPipeline {
+    /// Variants built so far.
+    fn built(&self) -> usize {
+        let cells = self.cells.lock().unwrap_or_else(|e| e.into_inner());
+        cells.values().filter(|c| c.get().is_some()).count()
+    }
+
     fn new(shader: &'static ShaderSource) -> Self {
         Self {
             shader,
@@ -484,6 +490,32 @@ pub(crate) struct PassPipelines {
     distortion: LazyPipeline,
     resample: LazyPipeline,
     fade: LazyPipeline,
+}
+
+impl PassPipelines {
+    /// Pipelines (pass and variant) built so far.
+    pub(crate) fn built(&self) -> usize {
+        [
+            &self.upsample,
+            &self.jitter,
+            &self.correct,
+            &self.gather,
+            &self.upsample_aniso,
+            &self.correct_aniso,
+            &self.gather_aniso,
+            &self.gather_map,
+            &self.magnify,
+            &self.fill,
+            &self.advect,
+            &self.drift,
+            &self.distortion,
+            &self.resample,
+            &self.fade,
+        ]
+        .iter()
+        .map(|p| p.built())
+        .sum()
+    }
 }
 
 impl std::fmt::Debug for PassPipelines {
@@ -1413,6 +1445,24 @@ impl GpuSynthesizer {
                     jacobians.and(qe)
                 })
             })
+    }
+
+    /// Builds the pipelines `schedule` (a schedule of `plan`) dispatches now, the
+    /// corrections each on a thread of its own, rather than while a submission using
+    /// them is recorded ([`crate::gpu::advect::Advection`] prepares its frames' with it).
+    pub(crate) fn prepare_schedule(
+        &self,
+        ctx: &GpuContext,
+        plan: &SynthPlan,
+        schedule: &[Dispatch],
+    ) -> Result<()> {
+        self.pipelines.prepare_split(
+            ctx,
+            schedule
+                .iter()
+                .map(|d| (d.kind, Variant::of_dispatch(plan, d))),
+            || Ok(()),
+        )
     }
 
     /// Synthesizes and submits; returns when the GPU has finished.
