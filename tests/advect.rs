@@ -922,6 +922,17 @@ fn frames_build_no_pipelines_after_new() {
             sets_every: 3,
             ..AdvectOptions::keep_look()
         },
+        // The finest level advected and corrected: its corrections read quarter-pixel
+        // tables, a variant of their own.
+        AdvectOptions {
+            upsample_finest: false,
+            ..AdvectOptions::default()
+        },
+        AdvectOptions {
+            resynthesize: 1,
+            levels: 3,
+            ..AdvectOptions::default()
+        },
     ] {
         let mut adv = Advection::new(&own, synth.clone(), &params, options).unwrap();
         let built = own.built_pipelines();

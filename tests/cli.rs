@@ -1977,6 +1977,16 @@ fn advect_sweep_findings_fail_early() {
         let args: Vec<&str> = cmd.iter().map(|s| s.as_str()).collect();
         fails(&dir, &args, 1, "--dt 1e39: too large for 32-bit floats");
     }
+    // And one that rounds to 0 as such, not accepted to fail after the synthesis.
+    for cmd in [
+        advect(&["--flow", "vortex", "--dt", "1e-50", "-o", "tiny-step"]),
+        ["eval", GRAVEL, "good", "--flow", "vortex", "--dt", "1e-50"]
+            .map(String::from)
+            .to_vec(),
+    ] {
+        let args: Vec<&str> = cmd.iter().map(|s| s.as_str()).collect();
+        fails(&dir, &args, 1, "--dt 1e-50: too small for 32-bit floats");
+    }
     // Rates that overflow when sampled are refused up front, in advect and eval.
     // (A core radius makes the parser check the spec: a usage error.)
     for (spec, code) in [

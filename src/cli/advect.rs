@@ -24,7 +24,10 @@ use super::{fail, fmt_duration, parse_size, CliResult, TileArgs, Ui};
     long_about = "Advect a synthesized texture along a flow, frame by frame (paper section 7): \
                   the coordinates of the finest levels move with the flow without resampling, \
                   pixels the flow distorts too much are re-synthesized from the coarser level, \
-                  and a correction pass keeps the texture intact. Writes the frames to a folder \
+                  and a correction pass keeps the texture intact (--carry; the default on a mesh \
+                  or along a varying --field). In 2D without a field or with a constant one \
+                  the default is --keep-look --fade 2, which keeps the texture's look under \
+                  turning and divergent flows by remaking it as it moves. Writes the frames to a folder \
                   (frame_00000.png, ...) or an animation (OUT.png: animated PNG; OUT.gif), and prints per-frame cost \
                   and temporal-coherence figures. With --mesh the texture moves over the \
                   surface's atlas (velocities from a 3D flow projected into it) and each frame is \
@@ -113,8 +116,8 @@ pub struct AdvectArgs {
     /// renewed, a pixel continues the nearest-landing of the anchors around it (a grid of
     /// this spacing) straightened along the field, instead of being upsampled from the
     /// coarser level, so it keeps nearly what it showed instead of popping. For textures
-    /// without long structures: gravel, --keep-look, 300 frames of the vortex: 0.89% of
-    /// the 8x8 blocks popping per frame against 1.14%, with --fade 1 0.149% against
+    /// without long structures: gravel, --keep-look --fade 0, 300 frames of the vortex:
+    /// 0.89% of the 8x8 blocks popping per frame against 1.14%, with --fade 1 0.149% against
     /// 0.175%, at the same mean energy; the marble's energy rises (x1.10 against x0.95)
     #[arg(
         long,
@@ -139,7 +142,7 @@ pub struct AdvectArgs {
     /// Levels each frame works on (the finest ones): the finest is upsampled from the
     /// others, which are advected (with --advect-finest, all are advected; with
     /// --resynthesize K, the K below the finest are re-synthesized) [default: 3, 4 with
-    /// --keep-look]
+    /// --keep-look, the default in 2D without a varying --field]
     #[arg(long)]
     pub levels: Option<usize>,
 
@@ -162,7 +165,7 @@ pub struct AdvectArgs {
     /// of about 1 and more re-synthesize little: only the pixels with seams on both sides
     /// of both axes, which continue no patch and are re-synthesized at any threshold;
     /// with --keep-look, of the coarsest advected level) [default: 0.5, 0.12 with
-    /// --keep-look]
+    /// --keep-look, the default in 2D without a varying --field]
     #[arg(long)]
     pub threshold: Option<f32>,
 
@@ -172,8 +175,8 @@ pub struct AdvectArgs {
 
     /// Correction passes per frame of the coarsest advected level (where it is not the
     /// second-finest), 0..=16. It is small: with --keep-look a second pass there
-    /// settles the renewals (gravel, vortex, 300 frames: 1.14% of the blocks popping at
-    /// x1.00 of frame 0's texture energy, against 1.61% at x1.12), but on a mesh or
+    /// settles the renewals (gravel, vortex, 300 frames, --fade 0: 1.14% of the blocks
+    /// popping at x1.00 of frame 0's texture energy, against 1.61% at x1.12), but on a mesh or
     /// along a varying --field more passes there pop more [default: with --keep-look in
     /// 2D without a field or with a constant one 2 (or --passes if 0 or larger), else
     /// --passes]
@@ -223,7 +226,8 @@ pub struct AdvectArgs {
     /// advected level above the re-synthesized ones with --resynthesize; with
     /// --keep-look, every advected level), 1..=16 (1: every correction, as synthesis does
     /// by default; 2 is about an eighth faster per frame for energies 1-2% higher); with
-    /// --passes above 1, on every N-th pass of a frame [default: 2, 4 with --keep-look]
+    /// --passes above 1, on every N-th pass of a frame [default: 2, 4 with --keep-look, the
+    /// default in 2D without a varying --field]
     #[arg(long, value_name = "N")]
     pub sets_every: Option<u32>,
 
@@ -574,10 +578,12 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
     } else {
         format!(
             "advection: carrying the texture (the paper's scheme{})",
-            if constant_j && !args.carry {
-                ", with --advect-finest or --resynthesize"
-            } else if constant_j {
+            if args.carry {
                 ", --carry"
+            } else if args.advect_finest {
+                ", with --advect-finest"
+            } else if args.resynthesize > 0 {
+                ", with --resynthesize"
             } else {
                 ", the default on a mesh or along a varying field"
             }

@@ -362,6 +362,13 @@ pub fn time_step(dt: f64) -> CliResult<f32> {
             texsyn::passes::advect::MAX_SPEED
         )));
     }
+    if (dt as f32) <= 0.0 {
+        return Err(fail(format!(
+            "--dt {dt:e}: too small for 32-bit floats (it rounds to 0): give a positive \
+             step of at least {:e}",
+            f32::from_bits(1)
+        )));
+    }
     Ok(dt as f32)
 }
 

@@ -162,7 +162,7 @@ impl Advection {
         let schedule = this
             .plan
             .advect_first_schedule(this.synthesizer.analysis(), &this.options);
-        this.prepare_frames(ctx, &this.options, &schedule)?;
+        Self::prepare_frames(ctx, &this.synthesizer, &this.plan, &this.options, &schedule)?;
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
         this.record(ctx, &mut encoder, &schedule, true)?;
         ctx.scoped(|| ctx.queue.submit([encoder.finish()]))?;
@@ -336,13 +336,13 @@ impl Advection {
                 synthesizer.fine_tables(ctx, level);
             }
         })?;
+        Self::prepare_frames(ctx, &synthesizer, &plan, &self.options, &[])?;
         if !Arc::ptr_eq(&self.synthesizer, &synthesizer) {
             self.remake_static = true;
         }
         self.synthesizer = synthesizer;
         self.plan = plan;
-        let options = self.options;
-        self.prepare_frames(ctx, &options, &[])
+        Ok(())
     }
 
     /// The synthesizer (exemplar analysis) the frames correct against.
@@ -359,6 +359,8 @@ impl Advection {
     pub fn set_options(&mut self, ctx: &GpuContext, options: AdvectOptions) -> Result<()> {
         self.synthesizer.check_context(ctx)?;
         options.check_for_pyramid(self.plan.levels.len())?;
+        // Before anything changes: an error leaves the advection as it was.
+        Self::prepare_frames(ctx, &self.synthesizer, &self.plan, &options, &[])?;
         let need = self.plan.advect_buffer_len(options.fade > 0) * 8;
         if need > self.coords.size() {
             let max = ctx.limits().max_storage_buffer_binding_size;
@@ -389,7 +391,6 @@ impl Advection {
         if self.options.fade <= 1 && options.fade > 1 {
             self.fade_state = false;
         }
-        self.prepare_frames(ctx, &options, &[])?;
         self.options = options;
         Ok(())
     }
@@ -400,19 +401,23 @@ impl Advection {
     /// subpasses rotate over the frames, whose schedules repeat within
     /// [`PREPARED_FRAMES`].
     fn prepare_frames(
-        &self,
         ctx: &GpuContext,
+        synthesizer: &GpuSynthesizer,
+        plan: &SynthPlan,
         options: &AdvectOptions,
         extra: &[Dispatch],
     ) -> Result<()> {
-        let analysis = self.synthesizer.analysis();
-        let mut schedule = extra.to_vec();
-        schedule.extend(self.plan.advect_static_schedule(analysis, options));
+        let analysis = synthesizer.analysis();
+        // Each frame is a submission of its own (a frame after a change of parameters
+        // prepends the static levels' schedule).
+        let static_levels = plan.advect_static_schedule(analysis, options);
+        let mut schedules = vec![extra.to_vec()];
         for frame in 1..=PREPARED_FRAMES {
-            schedule.extend(self.plan.advect_schedule(analysis, options, frame));
+            let frame = plan.advect_schedule(analysis, options, frame);
+            schedules.push([static_levels.as_slice(), &frame].concat());
+            schedules.push(frame);
         }
-        self.synthesizer
-            .prepare_schedule(ctx, &self.plan, &schedule)
+        synthesizer.prepare_schedules(ctx, plan, &schedules)
     }
 
     /// Whether `plan` computes the same regions at every level as the current one (the

@@ -293,7 +293,9 @@ impl GpuContext {
     /// build, so a host can check that its frame loop builds none (they are built by
     /// [`Self::prepare_pipelines`], [`Self::prepare_synthesis`],
     /// [`GpuSynthesizer::prepare`](crate::GpuSynthesizer::prepare) and
-    /// [`Advection::new`](crate::Advection::new), or on first use).
+    /// [`Advection::new`](crate::Advection::new), or on first use). Not counted: the
+    /// small pipeline that quantizes a caller's velocity texture, built by an
+    /// advection's first [`encode_step_texture`](crate::Advection::encode_step_texture).
     pub fn built_pipelines(&self) -> usize {
         self.pipelines.get().map_or(0, |p| p.built())
     }

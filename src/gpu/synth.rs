@@ -928,6 +928,27 @@ impl GpuSynthesizer {
     /// caller's error scope); `None` if it has none or they exceed the device's limits.
     /// [`crate::gpu::advect::Advection::new`] calls it so that the first frame does not
     /// pay for them.
+    /// The quarter-pixel tables `schedule`'s corrections read (built now; `None` where
+    /// none do or they do not fit), and which dispatches read them: those that read
+    /// quarter pixels at the schedule's most corrected level
+    /// ([`crate::passes::plan::quarter_tables_level`]), read from its supersampled tables
+    /// instead of `et` and `qe` (a variant of their own).
+    fn fine_reads<'a>(
+        &'a self,
+        ctx: &GpuContext,
+        schedule: &[Dispatch],
+    ) -> (Option<&'a FineTables>, impl Fn(&Dispatch) -> bool + 'a) {
+        let level = crate::passes::plan::quarter_tables_level(schedule, &self.analysis);
+        let fine = level.and_then(|l| self.fine_tables(ctx, l));
+        let et_base = fine.map(|f| f.et_base);
+        let reads = move |d: &Dispatch| {
+            Some(d.level) == level
+                && Some(d.params.et_base) == et_base
+                && d.reads_quarter_tables(&self.analysis)
+        };
+        (fine, reads)
+    }
+
     pub(crate) fn fine_tables(&self, ctx: &GpuContext, level: usize) -> Option<&FineTables> {
         self.fine
             .get(level)?
@@ -1180,10 +1201,7 @@ impl GpuSynthesizer {
         // (quarter_tables_level) read them from its supersampled tables when those fit
         // (a second bind group: the tables replace `et` and `qe`, so no binding is added
         // to the layout).
-        let fine_level = crate::passes::plan::quarter_tables_level(schedule, &self.analysis);
-        let fine_dispatch =
-            |d: &Dispatch| Some(d.level) == fine_level && d.reads_quarter_tables(&self.analysis);
-        let fine = fine_level.and_then(|l| self.fine_tables(ctx, l));
+        let (fine, reads_fine) = self.fine_reads(ctx, schedule);
         let make_bind_group =
             |colors: &wgpu::Buffer,
              target: &wgpu::TextureView,
@@ -1261,8 +1279,8 @@ impl GpuSynthesizer {
             for (i, d) in schedule.iter().enumerate() {
                 let mut variant = Variant::of_dispatch(plan, d);
                 let mut group = &bind_group;
-                if let Some((f, g)) = &fine_group {
-                    if fine_dispatch(d) && f.et_base == d.params.et_base {
+                if let Some((_, g)) = &fine_group {
+                    if reads_fine(d) {
                         variant = variant.with_fine_tables();
                         group = g;
                     }
@@ -1447,22 +1465,32 @@ impl GpuSynthesizer {
             })
     }
 
-    /// Builds the pipelines `schedule` (a schedule of `plan`) dispatches now, the
+    /// Builds the pipelines `schedules` (each a whole submission's schedule of `plan`,
+    /// which decides the dispatches reading quarter-pixel tables) dispatch now, the
     /// corrections each on a thread of its own, rather than while a submission using
     /// them is recorded ([`crate::gpu::advect::Advection`] prepares its frames' with it).
-    pub(crate) fn prepare_schedule(
+    pub(crate) fn prepare_schedules(
         &self,
         ctx: &GpuContext,
         plan: &SynthPlan,
-        schedule: &[Dispatch],
+        schedules: &[Vec<Dispatch>],
     ) -> Result<()> {
-        self.pipelines.prepare_split(
-            ctx,
-            schedule
-                .iter()
-                .map(|d| (d.kind, Variant::of_dispatch(plan, d))),
-            || Ok(()),
-        )
+        let mut dispatches = Vec::new();
+        for schedule in schedules {
+            let (_, reads_fine) = self.fine_reads(ctx, schedule);
+            dispatches.extend(schedule.iter().map(|d| {
+                let variant = Variant::of_dispatch(plan, d);
+                let variant = if reads_fine(d) {
+                    variant.with_fine_tables()
+                } else {
+                    variant
+                };
+                (d.kind, variant)
+            }));
+        }
+        dispatches.sort_unstable_by_key(|&(kind, v)| (kind as u32, v.0));
+        dispatches.dedup();
+        self.pipelines.prepare_split(ctx, dispatches, || Ok(()))
     }
 
     /// Synthesizes and submits; returns when the GPU has finished.
