@@ -380,6 +380,10 @@ impl std::str::FromStr for Flow {
                 rest.split(',').map(|x| x.trim().parse::<f32>()).collect();
             match v {
                 Ok(v) if v.len() == n && v.iter().all(|x| x.is_finite()) => Ok(v),
+                _ if kind == "vortex" => Err(format!(
+                    "'{s}': vortex takes 3 finite numbers separated by commas (CX,CY,OMEGA: a \
+                     rigid rotation) or 4 (CX,CY,OMEGA,CORE: a fluid vortex)"
+                )),
                 _ => Err(format!(
                     "'{s}': {kind} takes {n} finite numbers separated by commas"
                 )),

@@ -1506,21 +1506,29 @@ fn advect_cli() {
         (vec!["--flow", "vortex:0.5,0.5,0.02,0"], "core radius", 2),
         (vec!["--flow", "vortex:0.5,0.5,0.02,-0.1"], "core radius", 2),
         (vec!["--flow", "image:missing.png"], "missing.png", 1),
-        (
-            vec!["--flow", "vortex", "--fade", "65"],
-            "a fade of 65 frames",
-            1,
-        ),
-        (vec!["--flow", "vortex", "--fade", "-1"], "--fade", 2),
+        // The fade's ranges are the parser's (0..=64, 0..=255), stated in its message.
+        (vec!["--flow", "vortex", "--fade", "65"], "0..=64", 2),
+        (vec!["--flow", "vortex", "--fade", "-1"], "0..=64", 2),
         (
             vec!["--flow", "vortex", "--fade", "1", "--fade-change", "300"],
-            "a pop test of 300",
-            1,
+            "0..=255",
+            2,
         ),
         (
             vec!["--flow", "vortex", "--fade", "1", "--fade-change", "-5"],
-            "--fade-change",
+            "0..=255",
             2,
+        ),
+        (
+            vec!["--flow", "vortex:0.3,0.3"],
+            "or 4 (CX,CY,OMEGA,CORE",
+            2,
+        ),
+        // keep_look needs 3 levels: asked for, it says how to carry the texture instead.
+        (
+            vec!["--flow", "vortex", "--keep-look", "--levels", "2"],
+            "--carry",
+            1,
         ),
     ] {
         let mut a = vec![

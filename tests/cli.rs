@@ -1328,6 +1328,32 @@ fn review_findings_fail_cleanly() {
         swirl.contains("carrying the texture") && swirl.contains("varying field"),
         "{swirl}"
     );
+    let (two, _) = frames_of("two-levels", &["--levels", "2"]);
+    assert!(
+        two.contains("carrying the texture") && two.contains("--levels below 3"),
+        "{two}"
+    );
+    // Options that act only with another are said to have no effect.
+    for (extra, needle) in [
+        (
+            &["--fade", "0", "--fade-change", "20"][..],
+            "--fade-change has no effect",
+        ),
+        (
+            &["--anchor-upsample", "0.3"][..],
+            "--anchor-upsample has no effect",
+        ),
+    ] {
+        let mut a = vec![
+            "advect", GRAVEL, "--flow", "vortex", "--frames", "1", "--size", "16", "-o", "noted",
+        ];
+        a.extend_from_slice(extra);
+        let o = texsyn(&dir, &a);
+        let stderr = text(&o.stderr);
+        assert!(o.status.success(), "{a:?}: {stderr}");
+        assert!(stderr.contains(needle), "{a:?}: {stderr}");
+        std::fs::remove_dir_all(dir.path("noted")).unwrap();
+    }
     let (forced, _) = frames_of("forced", &["--field", "swirl", "--keep-look"]);
     assert!(
         forced.contains("renewals faded over 2 frames (--keep-look)"),

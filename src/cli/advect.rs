@@ -70,7 +70,8 @@ pub struct AdvectArgs {
     /// 0's under a vortex, but the texture is continuously remade as it moves (over tens
     /// of frames most of it is new); a uniform flow still moves it exactly (where the
     /// field is constant). Every advected level is corrected in full every frame
-    /// (--correct-coherent implied), in 2D the coarsest twice (--coarsest-passes). The
+    /// (--correct-coherent implied), the coarsest twice where the field is constant
+    /// (--coarsest-passes). The
     /// default in 2D without a field or with a constant one; on a mesh or along a varying
     /// --field it remakes the detail almost everywhere and pops, and the default there is
     /// --carry
@@ -94,23 +95,24 @@ pub struct AdvectArgs {
     /// (0.175% of the 8x8 blocks per frame) for a texture energy of x1.06 frame 0's at
     /// frame 300 (x1.00 without), --fade 2 20x less (0.058%) at x1.17; about 10 ms more
     /// per 512x512 frame on lavapipe (its pass, 12-16 ms, replaces the 3 ms gather). A
-    /// uniform flow of whole pixels is unaffected [default: 2 with --keep-look (the default
-    /// in 2D), else 0]
-    #[arg(long, value_name = "N", allow_hyphen_values = true)]
+    /// uniform flow of whole pixels is unaffected; 0..=64 [default: 2 with --keep-look (the
+    /// default in 2D without a varying --field), else 0]
+    #[arg(long, value_name = "N", allow_hyphen_values = true,
+          value_parser = clap::value_parser!(u32).range(0..=texsyn::passes::advect::MAX_FADE_FRAMES as i64))]
     pub fade: Option<u32>,
 
     /// With --fade: how much the jumps around a pixel that jumped must change the colour
     /// on average (of 255, over its 3x3 neighbourhood) for it to fade (0-255). Lower fades
     /// more pops for a higher texture energy (gravel, --keep-look --fade 1, 300 frames of
     /// the vortex: 35 left 0.099% of the 8x8 blocks popping per frame at a texture energy
-    /// of x1.10 frame 0's at frame 300; 45 0.175% at x1.06)
+    /// of x1.10 frame 0's at frame 300; 45 0.175% at x1.06) [default: 45]
     #[arg(
         long,
         value_name = "T",
-        default_value_t = texsyn::passes::fade::FADE_CHANGE,
+        value_parser = clap::value_parser!(u32).range(0..=255),
         allow_hyphen_values = true
     )]
-    pub fade_change: u32,
+    pub fade_change: Option<u32>,
 
     /// Anchored renewals (0: off; 4 measured best): where the coarsest advected level is
     /// renewed, a pixel continues the nearest-landing of the anchors around it (a grid of
@@ -131,13 +133,9 @@ pub struct AdvectArgs {
     /// anyway. Anchored renewals never bring back the coarse levels' large structures,
     /// which break up over hundreds of frames (marble veins) without some; lower pops
     /// less (gravel, fifty-fifth session's build: 0 left 0.63% popping, 0.5 1.09%)
-    #[arg(
-        long,
-        value_name = "SHARE",
-        default_value_t = 0.5,
-        allow_hyphen_values = true
-    )]
-    pub anchor_upsample: f32,
+    /// [default: 0.5]
+    #[arg(long, value_name = "SHARE", allow_hyphen_values = true)]
+    pub anchor_upsample: Option<f32>,
 
     /// Levels each frame works on (the finest ones): the finest is upsampled from the
     /// others, which are advected (with --advect-finest, all are advected; with
@@ -178,8 +176,8 @@ pub struct AdvectArgs {
     /// settles the renewals (gravel, vortex, 300 frames, --fade 0: 1.14% of the blocks
     /// popping at x1.00 of frame 0's texture energy, against 1.61% at x1.12), but on a mesh or
     /// along a varying --field more passes there pop more [default: with --keep-look in
-    /// 2D without a field or with a constant one 2 (or --passes if 0 or larger), else
-    /// --passes]
+    /// 2D without a field or with a constant one 2, or --passes if that is 0 or above 2;
+    /// else --passes]
     #[arg(long, value_name = "N")]
     pub coarsest_passes: Option<u32>,
 
@@ -518,8 +516,13 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
     // everywhere (AdvectOptions::recommended): 2D, no field or a constant one.
     let constant_j =
         args.mesh.is_none() && matches!(args.field, None | Some(FieldSpec::Constant { .. }));
+    // An explicit --levels below keep-look's least (3) asks for the texture carried.
     let keep_look = args.keep_look
-        || (constant_j && !args.carry && !args.advect_finest && args.resynthesize == 0);
+        || (constant_j
+            && !args.carry
+            && !args.advect_finest
+            && args.resynthesize == 0
+            && args.levels.is_none_or(|l| l >= 3));
     let preset = if keep_look {
         AdvectOptions::keep_look()
     } else {
@@ -543,11 +546,18 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
         } else {
             0
         }),
-        fade_change: args.fade_change,
+        fade_change: args.fade_change.unwrap_or(preset.fade_change),
         anchor_spacing: args.anchor,
-        anchor_upsample: args.anchor_upsample,
+        anchor_upsample: args.anchor_upsample.unwrap_or(preset.anchor_upsample),
     };
     options.check()?;
+    // Options that act only with another: said, not silently ignored.
+    if args.fade_change.is_some() && options.fade == 0 {
+        ui.info("note: --fade-change has no effect without fading (--fade 1 or more)");
+    }
+    if args.anchor_upsample.is_some() && options.anchor_spacing == 0 {
+        ui.info("note: --anchor-upsample has no effect without anchored renewals (--anchor N)");
+    }
     // The temporal figures printed at the end use 5x5 windows: refuse what they cannot
     // measure before any frame is written.
     if args.mesh.is_none() && (args.size[0] < 5 || args.size[1] < 5) {
@@ -584,6 +594,8 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
                 ", with --advect-finest"
             } else if args.resynthesize > 0 {
                 ", with --resynthesize"
+            } else if constant_j {
+                ", with --levels below 3"
             } else {
                 ", the default on a mesh or along a varying field"
             }
@@ -789,9 +801,10 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
     let frame_time = median(&mut costs);
     let report = figures.finish()?;
     ui.info(format!(
-        "output: {} ({} frames of {}x{})",
+        "output: {} ({} frame{} of {}x{})",
         args.output.display(),
         written.0,
+        if written.0 == 1 { "" } else { "s" },
         written.1[0],
         written.1[1]
     ));

@@ -67,7 +67,9 @@ pub struct EvalArgs {
     /// frame-to-frame differences, the popping (the fraction of 8x8 blocks whose mean
     /// warped change exceeds 0.15 of full scale, per pair of frames), texture energy per
     /// --energy-every frames and the sharpness (high-frequency energy relative to the
-    /// exemplar's) per frame
+    /// exemplar's) per frame. 2D frames only: the frames of `advect --mesh` are renders
+    /// (two views side by side) that a 2D flow does not move; advect prints their figures,
+    /// measured over the atlas
     #[arg(long, value_name = "SPEC", value_parser = super::advect::parse_flow,
           conflicts_with_all = ["coords", "field"])]
     pub flow: Option<super::advect::FlowArg>,

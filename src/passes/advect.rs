@@ -640,8 +640,10 @@ impl AdvectOptions {
         }
         if self.keep_look && self.levels < 3 {
             return Err(Error::InvalidParameter(format!(
-                "keep_look on {} levels: it remakes the advected levels below the coarsest \
-                 one, so use at least 3 levels (--levels; the finest is upsampled)",
+                "keep_look (--keep-look, the CLI's default in 2D without a varying field) on \
+                 {} levels: it remakes the advected levels below the coarsest one, so use at \
+                 least 3 levels (--levels; the finest is upsampled), or carry the texture \
+                 (--carry; AdvectOptions::default())",
                 self.levels
             )));
         }
