@@ -513,7 +513,9 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
     }
     flow.validate()?;
     // --keep-look where asked for, and by default where the desired Jacobian is the same
-    // everywhere (AdvectOptions::recommended): 2D, no field or a constant one.
+    // everywhere: AdvectOptions::recommended's rule (SynthParams::constant_jacobian), read
+    // from the arguments because the options are checked before the analysis and the
+    // atlas that the parameters need.
     let constant_j =
         args.mesh.is_none() && matches!(args.field, None | Some(FieldSpec::Constant { .. }));
     // An explicit --levels below keep-look's least (3) asks for the texture carried.
@@ -896,8 +898,9 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
             "  the texture energy rose {r:.2}x: the flow breaks the texture up as it turns or \
              stretches it; {} (README, Advection)",
             if constant_j {
-                "--keep-look (the default here, unless --carry, --advect-finest or \
-                 --resynthesize is given) remakes it as it moves and keeps its look"
+                "--keep-look (the default here, unless --carry, --advect-finest, \
+                 --resynthesize or --levels below 3 is given) remakes it as it moves and \
+                 keeps its look"
             } else {
                 "--keep-look remakes it as it moves and keeps its look, but pops on a mesh or \
                  along a varying field"
