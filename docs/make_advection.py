@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Regenerates docs/advection_vortex.png (README, Advection): frames 0, 100, 200 and 300 of
+"""Regenerates docs/advection_vortex.png (docs/advection.md): frames 0, 100, 200 and 300 of
 the default vortex advecting the bundled gravel and brick, 256x256, with the texsyn CLI's
 default options (in 2D `--keep-look --fade 2`).
 

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Regenerates the pictures of README's "Controls" section with the texsyn CLI:
+"""Regenerates the pictures of docs/controls.md with the texsyn CLI:
 
   docs/controls_fields.png     exemplar | field (stripes synthesized along it) | result,
                                for rotate, swirl, radial and perspective fields
@@ -28,7 +28,9 @@ from PIL import Image, ImageDraw, ImageFilter
 
 BIN = os.environ.get("TEXSYN", "target/release/texsyn")
 SIZE, GAP, LABEL = 256, 8, 16
-GRAVEL_512 = os.environ.get("GRAVEL_512", "../shared/exemplars/cc0_gravel.png")
+# A 512x512 photograph for the magnification picture (the picture used scikit-image's CC0
+# sample `skimage.data.gravel()`); without one that picture is left as it is.
+GRAVEL_512 = os.environ.get("GRAVEL_512", "")
 
 
 def run(*args):
@@ -151,11 +153,11 @@ with tempfile.TemporaryDirectory() as tmp:
 
     # Magnification: synthesize 128x128 from the 512 px photograph analysed at 128 px;
     # left: its pixels scaled 4x; right: --magnify 4 (colours from the full photograph).
-    # The photograph is not shipped (see README): without it the picture stays as it is.
-    if os.path.exists(GRAVEL_512):
+    # The photograph is not shipped (set GRAVEL_512): without it the picture stays as it is.
+    if GRAVEL_512 and os.path.exists(GRAVEL_512):
         magnify_picture(tmp)
     else:
-        print(f"{GRAVEL_512} not found (set GRAVEL_512): docs/controls_magnify.png left as it is")
+        print("set GRAVEL_512 to a 512x512 photograph: docs/controls_magnify.png left as it is")
 
     # Tileable output repeated 2x2.
     t = os.path.join(tmp, "tile.png")

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Regenerates docs/advection_resynthesize.png (README, Advection): frame 300 of the default
+"""Regenerates docs/advection_resynthesize.png (docs/advection.md): frame 300 of the default
 vortex, 256x256, with the levels below the finest advected (`--carry`, the paper's scheme),
 with `--keep-look --fade 0` (the advected levels below the coarsest one remade wherever the
 flow turns them, the coarsest renewed where it has turned by about 5 degrees), with

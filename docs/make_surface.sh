@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Regenerates docs/surface_bunny.png and docs/surface_torus.png (README, Surfaces).
+# Regenerates docs/surface_bunny.png and docs/surface_torus.png (docs/surfaces.md).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 cargo build --release --example surface
