@@ -6,7 +6,7 @@ process from the image and from the analysis file (wall clock), and `--ts-runs` 
 `texture-synthesis` runs (its defaults; its outputs vary from run to run). Quality comes from
 `texsyn eval` on both outputs (the largest verbatim copy from texsyn's coordinate map, written
 in a separate, untimed run). Prints a Markdown table and the medians of the ratios, the
-figures issue 2 judges, with the coarse energies both on the grid and any-phase.
+figures docs/quality.md reports, with the coarse energies both on the grid and any-phase.
 
     cargo build --release
     cargo install --locked texture-synthesis-cli --version 0.8.3 --root /tmp/tscli
