@@ -1,4 +1,5 @@
-//! Texture advection frame by frame, driven by a host application (paper section 7).
+//! Texture advection frame by frame, driven by a host application (Lefebvre & Hoppe
+//! 2006, section 7).
 //!
 //! [`Advection::new`] synthesizes the first frame and keeps its coordinate pyramid on
 //! the GPU; every [`Advection::step`] (host velocities) or [`Advection::encode_step`]
@@ -176,19 +177,18 @@ impl Advection {
     pub fn synthesis_params(params: &SynthParams) -> SynthParams {
         let mut p = params.clone();
         // Advected coordinates have several times the seams of a synthesis; blending
-        // their colours blurred the texture (vortex test: sharpness 0.65x of frame 0).
+        // their colours blurs the texture.
         p.seam_blend = false;
         // The plan keeps a corrected finest level: with `AdvectOptions::upsample_finest =
         // false` every frame corrects it, and frame 0 does too (synthesis leaves it
         // uncorrected by default, which pays only with seam blending: without it, the
-        // correction lowers frame 0's energy, 0.00198 against 0.00214 on gravel); either
+        // correction lowers frame 0's energy); either
         // way its region keeps the margin of a corrected level, which the flow carries
         // into view. With the finest level upsampled (the default), frame 0 and the
         // frames leave out its corrections (`SynthPlan::advect_first_schedule`).
         p.finest_passes = p.finest_passes.max(1);
-        // The advected levels' subpass schedule over the frames was measured with every
-        // level's passes: no smaller default at the second-finest level (see
-        // passes::plan::SMALL_SECOND_FINEST_PASSES).
+        // The advected levels keep every level's passes: no smaller default at the
+        // second-finest level (see passes::plan::SMALL_SECOND_FINEST_PASSES).
         p.second_finest_passes.get_or_insert(p.passes);
         p.standalone = false;
         if !p.anisometric() {
@@ -223,14 +223,17 @@ impl Advection {
         self.frame
     }
 
+    /// The synthesis parameters in force ([`Self::synthesis_params`] of the last given).
     pub fn params(&self) -> &SynthParams {
         &self.params
     }
 
+    /// The plan every frame runs on (regions and levels of the coordinate pyramid).
     pub fn plan(&self) -> &SynthPlan {
         &self.plan
     }
 
+    /// The advection options in force ([`Self::set_options`] changes them).
     pub fn options(&self) -> AdvectOptions {
         self.options
     }
@@ -396,8 +399,8 @@ impl Advection {
     }
 
     /// Builds the pipelines the frames with `options` dispatch (and those of `extra`)
-    /// now, so that the first frames do not stall on them: they were 0.2 s of frame 1
-    /// at 128x128 on lavapipe (a host application's frame loop would drop frames). The
+    /// now, so that the first frames do not stall on them (a host application's frame
+    /// loop would drop frames). The
     /// subpasses rotate over the frames, whose schedules repeat within
     /// [`PREPARED_FRAMES`].
     fn prepare_frames(

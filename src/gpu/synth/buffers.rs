@@ -13,6 +13,7 @@ use crate::passes::plan::{Dispatch, PassKind, SynthPlan};
 /// The coordinate pyramid, kept between calls of the same or smaller size. Sharing it
 /// is safe even for several syntheses recorded into one encoder: they run in order.
 pub(super) struct Scratch {
+    /// Capacity in coordinates.
     entries: u64,
     pub(super) coords: wgpu::Buffer,
 }
@@ -32,9 +33,8 @@ pub(super) fn coords_buffer(ctx: &GpuContext, count: u64, label: &str) -> wgpu::
 
 /// A storage buffer holding one part of every level's tables, concatenated (the layout
 /// the passes index with `et_base` / `off_base`), written straight into a buffer mapped at
-/// creation: no concatenated copy on the host. Each copy of fresh memory costs its page
-/// faults, which on a CPU device were most of the upload (a 400 px exemplar's 55 MB of
-/// tables). Where the device can map storage buffers (a CPU device, see
+/// creation: no concatenated copy on the host (each copy of fresh memory costs its page
+/// faults, which on a CPU device are most of the upload). Where the device can map storage buffers (a CPU device, see
 /// `GpuContext::headless`) the buffer is written in place; wgpu otherwise writes it to a
 /// staging buffer and copies, twice the memory touched.
 pub(super) fn levels_buffer(
@@ -150,6 +150,8 @@ pub(super) type JacobianKey = (
 );
 
 impl GpuSynthesizer {
+    /// The shared coordinate pyramid, grown to `plan`'s size if smaller (held locked
+    /// while a synthesis is recorded into it).
     pub(super) fn scratch_for(
         &self,
         ctx: &GpuContext,
@@ -188,10 +190,6 @@ impl GpuSynthesizer {
         qe.clone().unwrap_or_else(|| self.no_qe.clone())
     }
 
-    /// A level's quarter-pixel tables, built and uploaded now if not yet (inside the
-    /// caller's error scope); `None` if it has none or they exceed the device's limits.
-    /// [`crate::gpu::advect::Advection::new`] calls it so that the first frame does not
-    /// pay for them.
     /// The quarter-pixel tables `schedule`'s corrections read (built now; `None` where
     /// none do or they do not fit), and which dispatches read them: those that read
     /// quarter pixels at the schedule's most corrected level
@@ -213,6 +211,10 @@ impl GpuSynthesizer {
         (fine, reads)
     }
 
+    /// A level's quarter-pixel tables, built and uploaded now if not yet (inside the
+    /// caller's error scope); `None` if it has none or they exceed the device's limits.
+    /// [`crate::gpu::advect::Advection::new`] calls it so that the first frame does not
+    /// pay for them.
     pub(crate) fn fine_tables(&self, ctx: &GpuContext, level: usize) -> Option<&FineTables> {
         self.fine
             .get(level)?

@@ -8,12 +8,6 @@ use crate::passes::plan::SynthPlan;
 use crate::passes::SynthParams;
 
 impl GpuSynthesizer {
-    /// Checks an output size against the device limits before any work is recorded.
-    /// Refuses a context other than the one this synthesizer was made on (or a clone of
-    /// it): its buffers and pipelines would be bound on that context's device (a
-    /// validation error that spoils the device's cached pipelines, or a panic in wgpu
-    /// across instances). Two contexts made with [`GpuContext::from_device`] from the
-    /// same device count as different: clone the first instead.
     /// The plan this synthesizer runs for `params` on `ctx`: [`SynthPlan::new`], except
     /// that a tileable output made on a torus ([`crate::passes::plan::Torus`]) whose
     /// pyramid and Jacobians do not fit the device keeps the output's own periods
@@ -30,6 +24,11 @@ impl GpuSynthesizer {
         Ok(plan)
     }
 
+    /// Refuses a context other than the one this synthesizer was made on (or a clone of
+    /// it): its buffers and pipelines would be bound on that context's device (a
+    /// validation error that spoils the device's cached pipelines, or a panic in wgpu
+    /// across instances). Two contexts made with [`GpuContext::from_device`] from the
+    /// same device count as different: clone the first instead.
     pub fn check_context(&self, ctx: &GpuContext) -> Result<()> {
         if !self.context.same_as(ctx) {
             return Err(Error::InvalidParameter(
@@ -42,6 +41,8 @@ impl GpuSynthesizer {
         Ok(())
     }
 
+    /// Checks a plan's output (size, coordinate pyramid or Jacobians, dispatch counts)
+    /// against the device limits before any work is recorded; checks the context too.
     pub(crate) fn check_output(&self, ctx: &GpuContext, plan: &SynthPlan) -> Result<()> {
         self.check_context(ctx)?;
         let limits = ctx.limits();
@@ -178,6 +179,7 @@ pub(crate) fn fmt_bytes(b: u64) -> String {
     }
 }
 
+/// [`Error::TooLarge`] from its parts.
 pub(super) fn too_large(
     what: &'static str,
     width: u32,

@@ -12,9 +12,11 @@ use crate::passes::{SynthParams, Synthesis};
 /// ([`GpuSynthesizer::synthesize_magnified_with_maps`]).
 #[derive(Clone, Debug)]
 pub struct MagnifiedSynthesis {
-    /// Magnified size: `factor` times the synthesized window.
+    /// Magnified width: `factor` times the synthesized window's.
     pub width: u32,
+    /// Magnified height: `factor` times the synthesized window's.
     pub height: u32,
+    /// The magnification: 2, 4 or 8.
     pub factor: u32,
     /// Magnified colours from the high-resolution exemplar, RGBA8, `width x height`.
     pub colors: Vec<[u8; 4]>,

@@ -48,7 +48,8 @@ impl GpuSynthesizer {
 
     /// Shared by the map syntheses: with `magnify`, the colours (from `hi`) and the maps
     /// (high-resolution, `hi`'s size) are rendered magnified and the magnified colours
-    /// are returned too.
+    /// are returned too; with `resume = (coords, start)` only the schedule from `start`
+    /// runs, on the `coords` its earlier dispatches wrote (the copy guard's probe).
     #[allow(clippy::type_complexity)]
     pub(super) fn synthesize_maps_inner(
         &self,

@@ -48,6 +48,8 @@ impl GpuSynthesis {
 }
 
 impl GpuSynthesizer {
+    /// A blank output texture of [`OUTPUT_FORMAT`] (storage, texture binding, copy
+    /// source), viewable as [`OUTPUT_FORMAT_SRGB`] where the backend allows.
     pub(crate) fn output_texture(
         &self,
         ctx: &GpuContext,

@@ -17,9 +17,8 @@ use crate::passes::SynthParams;
 /// multiple of the 256-byte dynamic-offset alignment).
 pub(super) const PROJ_BYTES: u64 = 64 * 16;
 
-/// A compute pipeline built on first use, per [`Variant`]: a synthesis needs 5 of the
-/// 12 passes' pipelines, and building one costs ~10 ms on lavapipe (measured: 130 ms for
-/// all of them at start-up).
+/// A compute pipeline built on first use, per [`Variant`]: a synthesis needs only a few
+/// of the passes' pipelines, and building one is slow on CPU drivers.
 pub(super) struct LazyPipeline {
     shader: &'static ShaderSource,
     module: std::sync::OnceLock<wgpu::ShaderModule>,
@@ -87,7 +86,7 @@ impl LazyPipeline {
     }
 }
 
-/// The bind group layout every pass shares and the pipelines of the 12 passes, built on
+/// The bind group layout every pass shares and the pipelines of every pass, built on
 /// first use. One per device ([`GpuContext`] keeps it), so that every synthesizer on a
 /// device shares compiled pipelines, and so that they can be built ahead of time
 /// ([`GpuContext::prepare_pipelines`]) while the host does other work.
@@ -144,6 +143,7 @@ impl std::fmt::Debug for PassPipelines {
 }
 
 impl PassPipelines {
+    /// The shared layout; no pipeline is built yet.
     pub(crate) fn new(device: &wgpu::Device) -> Self {
         let mut entries = vec![wgpu::BindGroupLayoutEntry {
             binding: 0,
@@ -259,9 +259,8 @@ impl PassPipelines {
     }
 
     /// Builds these dispatches' pipelines, each correction variant's on a thread of its
-    /// own while this one builds the others and then runs `alongside` (host work). The
-    /// correction's pipeline takes the longest to build (lavapipe: 21 ms, 49 ms
-    /// anisometric, against 10 and 18 ms for all the others).
+    /// own while this one builds the others and then runs `alongside` (host work): the
+    /// corrections' pipelines take the longest to build.
     pub(crate) fn prepare_split(
         &self,
         ctx: &GpuContext,
@@ -272,8 +271,7 @@ impl PassPipelines {
             .into_iter()
             .partition(|(kind, _)| matches!(kind, PassKind::Correct | PassKind::CorrectAniso));
         // One thread per correction variant: with `SynthParams::sets_every` above 1 a
-        // synthesis has two (with and without the similarity sets), and one after the
-        // other they took twice as long.
+        // synthesis has two (with and without the similarity sets).
         let mut heavy_variants: Vec<(PassKind, Variant)> = Vec::new();
         for (kind, variant) in heavy {
             let kv = (kind, variant.for_kind(kind));
@@ -383,9 +381,8 @@ impl GpuSynthesizer {
     /// corrections read it. Optional; the synthesis is the same either way.
     pub fn prepare(&self, ctx: &GpuContext, params: &SynthParams) -> Result<()> {
         self.check_context(ctx)?;
-        // The Jacobian field (20-30 ms at 512x512 on the host) alongside, which the
-        // synthesis then finds in its cache, and beside it the `qe` table if a
-        // correction reads it (anisometric synthesis: 15-25 ms for a 400 px exemplar).
+        // The Jacobian field alongside, which the synthesis then finds in its cache, and
+        // beside it the `qe` table if a correction reads it.
         self.pipelines
             .prepare_plan(ctx, &self.analysis, params, |plan| {
                 std::thread::scope(|s| {

@@ -7,9 +7,10 @@ use crate::gpu::GpuContext;
 
 impl GpuSynthesis {
     /// Copies the texture back to the host as tightly packed RGBA8 rows (waits for the
-    /// GPU). For when the pixels are needed after all; `synthesize_to_host` does the
+    /// GPU). For when the pixels are needed after all;
+    /// [`synthesize_to_host`](super::GpuSynthesizer::synthesize_to_host) does the
     /// synthesis and this read-back in one submission. After
-    /// [`GpuSynthesizer::encode`], call it only once the encoder is submitted: before,
+    /// [`GpuSynthesizer::encode`](super::GpuSynthesizer::encode), call it only once the encoder is submitted: before,
     /// the texture is still blank (zeros), which this cannot tell from a result. `ctx`
     /// must be the context the texture was made on (the synthesizer's, or a clone): this
     /// struct does not record it, and wgpu panics on another instance's device.
@@ -49,6 +50,7 @@ impl GpuSynthesis {
     }
 }
 
+/// Waits until the device has finished the work submitted so far.
 pub(crate) fn wait(ctx: &GpuContext) -> Result<()> {
     ctx.device
         .poll(wgpu::PollType::wait_indefinitely())
@@ -56,6 +58,7 @@ pub(crate) fn wait(ctx: &GpuContext) -> Result<()> {
         .map_err(|e| Error::Gpu(format!("waiting for the GPU: {e}")))
 }
 
+/// Reads a `MAP_READ` buffer back to the host (waits for the device).
 pub(crate) fn read_buffer(ctx: &GpuContext, buffer: &wgpu::Buffer) -> Result<Vec<u8>> {
     read_mapped(
         buffer,

@@ -12,12 +12,15 @@ use crate::passes::plan::{Dispatch, PassKind, SynthPlan};
 
 /// An extra map gathered through the synthesized coordinates (material sets).
 pub(crate) struct MapTarget<'a> {
+    /// The map's pixels (RGBA8, the exemplar's size or `hi_size`).
     pub(super) colors: &'a wgpu::Buffer,
+    /// Where the gathered map is written.
     pub(super) view: &'a wgpu::TextureView,
     /// `PassParams::map_kind`: 0 plain, 1 normals with green down, 2 with green up.
     pub(super) map_kind: u32,
     /// > 1: the magnify pass with a high-resolution exemplar of `hi_size`.
     pub(super) magnify: u32,
+    /// Size of the high-resolution map when magnifying, else zero.
     pub(super) hi_size: [i32; 2],
 }
 
@@ -73,8 +76,9 @@ impl GpuSynthesizer {
         ctx.scoped(|| self.record_with(ctx, encoder, plan, last, target, false, maps, state))
     }
 
-    /// Records the first `count` dispatches of the synthesis into `encoder`, writing
-    /// colours to `target`. Returns the plan and the coordinate buffer.
+    /// Records `schedule`'s dispatches, then the gathers of `maps`, into `encoder` on
+    /// the shared coordinate pyramid (zeroed first with `clear`), writing colours to
+    /// `target`. Returns the coordinate buffer.
     #[allow(clippy::too_many_arguments)]
     pub(super) fn record(
         &self,

@@ -12,6 +12,7 @@ use crate::gpu::GpuContext;
 
 /// An exemplar uploaded to a device, ready to synthesize any number of textures.
 pub struct GpuSynthesizer {
+    /// The analysed exemplar the buffers below were uploaded from.
     pub(super) analysis: Arc<Analysis>,
     /// The context everything here was made on (a clone): calls with another context
     /// are refused ([`Self::check_context`]).
@@ -20,27 +21,33 @@ pub struct GpuSynthesizer {
     pub(super) pipelines: Arc<PassPipelines>,
     /// 16-byte stand-in for the velocity binding outside advection.
     pub(super) no_velocity: wgpu::Buffer,
+    /// Every level's `Et` table, concatenated (indexed by `PassParams::et_base`).
     pub(super) et: wgpu::Buffer,
     /// Uploaded on first use ([`Self::qe_for`]): only the projected distance reads it, and
     /// a default isometric synthesis uses the full distance on every corrected level.
     pub(super) qe: Mutex<Option<wgpu::Buffer>>,
     /// 16-byte stand-in for `qe` in the bind groups of schedules that never read it.
     pub(super) no_qe: wgpu::Buffer,
+    /// Every level's similarity-set offsets, concatenated (indexed by `off_base`).
     pub(super) offsets: wgpu::Buffer,
+    /// Every level's projection matrix, one [`PROJ_BYTES`](super::pipelines::PROJ_BYTES)
+    /// block per level (bound at a dynamic offset).
     pub(super) proj: wgpu::Buffer,
+    /// The exemplar's RGBA8 colours, which the gathers read.
     pub(super) colors: wgpu::Buffer,
+    /// The shared coordinate pyramid ([`Self::scratch_for`]).
     pub(super) scratch: Mutex<Option<Scratch>>,
     /// Per level, its quarter-pixel tables, built on first use (advection frames read
     /// those of their most corrected level; `None` if they do not fit the device's
     /// buffer limits: the shader then interpolates, same numbers).
     pub(super) fine: Vec<std::sync::OnceLock<Option<FineTables>>>,
-    /// The last rasterized Jacobian field and the regions it covers: a frame loop that
-    /// keeps its field and window reuses it instead of rasterizing again.
-    /// With the surface buffer of atlas synthesis (a placeholder otherwise).
+    /// The last rasterized Jacobian field and the regions it covers, with the surface
+    /// buffer of atlas synthesis (a placeholder otherwise): a frame loop that keeps its
+    /// field and window reuses them instead of rasterizing again.
     pub(super) jacobians: Mutex<Option<(JacobianKey, wgpu::Buffer, wgpu::Buffer)>>,
-    /// [`Self::set_progress`]'s callback: (levels done, levels in all).
-    /// The progress callback, in a lock of its own: the slot's lock is held only to
-    /// clone it out, so the callback may call [`Self::set_progress`] or synthesize.
+    /// [`Self::set_progress`]'s callback, in a lock of its own: the slot's lock is held
+    /// only to clone it out, so the callback may call [`Self::set_progress`] or
+    /// synthesize.
     pub(super) progress: Mutex<Option<Arc<Mutex<LevelProgress>>>>,
 }
 
@@ -115,6 +122,7 @@ impl GpuSynthesizer {
         })?
     }
 
+    /// The analysis this synthesizer was made from (exemplar size, levels, tables).
     pub fn analysis(&self) -> &Analysis {
         &self.analysis
     }
@@ -122,9 +130,9 @@ impl GpuSynthesizer {
     /// Reports the progress of long syntheses: while set, [`Self::synthesize`],
     /// [`Self::synthesize_to_host`], [`Self::synthesize_with_maps`] and the magnified
     /// variants submit each level on its own, wait for it and call `f(levels done,
-    /// levels in all)`. That costs one GPU round trip per level (a few milliseconds on
-    /// lavapipe, but idle time on a real GPU), so set it for outputs that take seconds,
-    /// and `None` to go back to one submission. [`Self::encode`] never splits (it does
+    /// levels in all)`. That costs one GPU round trip per level (idle time on a real
+    /// GPU), so set it for outputs that take seconds, and `None` to go back to one
+    /// submission. [`Self::encode`] never splits (it does
     /// not submit). Results are the same bytes either way.
     ///
     /// The callback may call into this synthesizer (set another callback, or

@@ -35,9 +35,8 @@ impl Variant {
     const FINE_TABLES: u16 = 1 << 6;
     const IDENTITY_J: u16 = 1 << 7;
     /// Above k's bits: `params.drift != 0`, which only the anisometric upsampling
-    /// branches on (an advection frame's drift phase). As a uniform branch it cost every
-    /// synthesis along a field about a tenth of its time on lavapipe (measured: bench
-    /// 512x512, `rotate:30` 104-108 ms against 92-93 ms, swirl 126-132 against 114-115).
+    /// branches on (an advection frame's drift phase): compiled in rather than a uniform
+    /// branch, which slowed every synthesis along a field on CPU drivers.
     const DRIFT: u16 = 1 << 14;
     /// `params.fade_frames > 1`, which only the fade pass branches on.
     const LONG_FADE: u16 = 1 << 15;
@@ -76,7 +75,7 @@ impl Variant {
         )
     }
 
-    /// The same, reading the level's quarter-pixel tables ([`FineTables`]).
+    /// The same, reading the level's quarter-pixel tables ([`FineTables`](super::buffers::FineTables)).
     pub(super) fn with_fine_tables(self) -> Self {
         Self(self.0 | Self::FINE_TABLES)
     }
