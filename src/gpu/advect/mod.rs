@@ -11,8 +11,7 @@
 //! moves the texture by `velocity * dt`. Host velocities must be finite; speeds above
 //! [`MAX_SPEED`](crate::passes::advect::MAX_SPEED) pixels per frame are clamped per
 //! component (documented limit of the fixed-point arithmetic). The GPU path cannot
-//! report errors per pixel: there, non-finite velocities count as 0. Velocity input is
-//! in [`velocity`].
+//! report errors per pixel: there, non-finite velocities count as 0.
 
 mod velocity;
 
