@@ -14,17 +14,7 @@
 //! upsampled, keeps them exactly). So the probe is read back at two coarser levels
 //! ([`EARLY_CHECKS`]) and given up there when its copy is clearly over the budget;
 //! the next tier's probe then starts sooner. Only a copy within a small margin of the
-//! budget waits for the output, which decides. Measured (twenty-seventh session, 120
-//! probes: 20 exemplars of 192-512 px x seeds 1-3 x both tiers, 512x512, lavapipe):
-//! the copy three levels above the finest was 0.021 below to 0.025 above the output's,
-//! two levels above 0.004 below to 0.013 above (the widest at 192-224 px). Of the 22
-//! probes over the budget, 11 were given up at the first check and 5 at the second;
-//! no decision changed.
-//!
-//! Measured (README, *Measured figures*, twenty-third session; 42 exemplars of 64-512
-//! px x seeds 1-3, 512x512, lavapipe): texture energy over `texture-synthesis`'s, full /
-//! half / quarter resolution (medians), 1.06 / 1.03 / 1.03 -> 0.80 / 0.97 / 0.99, the
-//! largest copy at most 0.25 of the exemplar where the guard applies.
+//! budget waits for the output, which decides.
 //!
 //! The decision must not depend on the output's origin, or windows of the unbounded
 //! texture would not fit together: the probe is always the window at the origin, with
@@ -33,15 +23,13 @@
 //! the probe is the result.
 //!
 //! The probe has the output's size because a stiller schedule's largest verbatim copy
-//! grows with the extent: 1024x1024 outputs whose 512x512 window at the origin copied
-//! 17-25% of the exemplar copied 27-66% (forty-third session: seven exemplars of 192-512
-//! px x seeds 1-2, eight of 14 over 30%; 2048x2048 up to 76%), while the default schedule
-//! stayed at 6-17% (at most 20% at 2048x2048). So an output larger than the probe of a
-//! smaller one may keep a less still schedule than it, and the two then differ where they
-//! overlap; outputs of one size always agree. Outputs over [`MAX_PROBE_SIZE`] a side keep
-//! the default schedule. Other windows of the output's size are not measured: tiles of a
-//! large texture can copy more than the budget between them; `--copy-budget 0` (the
-//! default schedule) bounds the copies at any size.
+//! grows with the extent, while the default schedule's stays at about a fifth of the
+//! exemplar at any size. So an output larger than the probe of a smaller one may keep a
+//! less still schedule than it, and the two then differ where they overlap; outputs of
+//! one size always agree. Outputs over [`MAX_PROBE_SIZE`] a side keep the default
+//! schedule. Other windows of the output's size are not measured: tiles of a large
+//! texture can copy more than the budget between them; `--copy-budget 0` (the default
+//! schedule) bounds the copies at any size.
 
 use super::context::GpuContext;
 use super::synth::{GpuSynthesizer, ProbeRun};
@@ -49,8 +37,8 @@ use crate::error::{Error, Result};
 use crate::passes::{SynthParams, Synthesis};
 
 /// The default budget: the largest verbatim copy a stiller schedule may make, as a
-/// fraction of the exemplar's area (issue 2 allows 0.30; this keeps a margin for the
-/// windows and seeds the probe does not see).
+/// fraction of the exemplar's area (a margin below 0.30 for the windows and seeds the
+/// probe does not see).
 pub const DEFAULT_COPY_BUDGET: f32 = 0.25;
 
 /// Smallest side of the probe window (pixels), at the origin of the unbounded texture;
@@ -63,22 +51,19 @@ pub const COPY_PROBE_SIZE: u32 = 512;
 pub const MAX_PROBE_SIZE: u32 = 2048;
 
 /// The guard applies to exemplars whose smaller side is at least this. Under it the
-/// default schedule already matches `texture-synthesis`'s texture energy (0.95 of it,
-/// median, at every resolution), and one more still level lowered only the
-/// full-resolution figure (0.83) while 18 of 39 probes copied too much.
+/// default schedule already matches `texture-synthesis`'s texture energy, and a stiller
+/// schedule gained little while many probes copied too much.
 pub const GUARD_MIN_SIDE: u32 = 176;
 
 /// The stiller schedules tried, stillest first (values of
 /// [`SynthParams::extra_still_levels`]); the first whose probe stays within the budget is
-/// kept. Measured on 30 exemplars of 176-512 px x 3 seeds: two more still levels passed
-/// 52 of 90 probes, one more 88 of 90.
+/// kept.
 pub const GUARD_TIERS: [u32; 2] = [2, 1];
 
 /// The probe's early checks: (levels above the finest, margin over the budget). A
 /// probe whose largest copy at that level exceeds the budget by more than the margin
-/// is given up there (see the module docs for the measured differences, which the
-/// margins exceed by 1.6x). 512x512 probes from a 512 px exemplar: the two checks save
-/// about 60% and 40% of a failing probe's GPU time.
+/// is given up there: the margins exceed the largest differences seen between the copy
+/// at that level and the output's.
 pub const EARLY_CHECKS: [(u32, f64); 2] = [(3, 0.04), (2, 0.02)];
 
 /// One probe of the copy guard.
@@ -90,6 +75,8 @@ pub struct Probe {
     /// output when `spacing` is 1, else the estimate at the coarser level whose pixels
     /// step `spacing` exemplar pixels, where the probe was given up.
     pub copy: f64,
+    /// Exemplar pixels per pixel of the level measured: 1 for the output, more where
+    /// the probe was given up at a coarser level.
     pub spacing: u32,
 }
 

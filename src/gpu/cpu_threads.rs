@@ -4,12 +4,9 @@
 //! take its workgroups one at a time under a lock and sleep between dispatches. A
 //! synthesis is a hundred or so short dispatches, so the workers wake each other far
 //! more often than the kernel balances load, and the scheduler can leave them all on one
-//! core for the whole run while the others idle. Measured on a 2-core machine (512x512
-//! from `assets/gravel.png`, GPU time of one synthesis): 85 ms with the workers on
-//! separate cores, 150-165 ms with both on one (user CPU time the same, wall time
-//! nearly doubled). Which of the two a process got was chance, and it changed within a
-//! run; creating the device on a thread of its own (as `texsyn synth` does, to overlap
-//! it with reading the input) made the slow case the usual one.
+//! core for the whole run while the others idle, nearly doubling the wall time. Which
+//! placement a process gets is chance; creating the device on a thread of its own (as
+//! `texsyn synth` does, to overlap it with reading the input) makes the slow one usual.
 //!
 //! So [`GpuContext::with_options`](super::GpuContext::with_options) creates the device on
 //! a thread named [`INIT_THREAD_NAME`]: threads the driver starts meanwhile inherit that

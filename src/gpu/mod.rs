@@ -1,6 +1,7 @@
 //! GPU side: device creation ([`context`]), the generated shader constants
-//! ([`shaders`]), synthesis on the GPU ([`synth`]) and the choice of its jitter schedule
-//! ([`copy_guard`]).
+//! ([`shaders`]), synthesis on the GPU ([`synth`]), the choice of its jitter schedule
+//! ([`copy_guard`]), texture advection ([`advect`]) and the placement of a CPU driver's
+//! worker threads ([`cpu_threads`]).
 
 pub mod advect;
 pub mod context;
