@@ -19,6 +19,7 @@
 //! Cases still waiting when the time budget (`--budget-s`, default 150 s; 100 s with
 //! `--quick`) is spent are listed as skipped, so the table is always written.
 
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
@@ -29,10 +30,23 @@ use texsyn::gpu::synth::GpuSynthesizer;
 use texsyn::gpu::GpuContext;
 use texsyn::{Session, SynthParams};
 
-/// The bundled exemplars.
-const GRAVEL: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/gravel.png");
+/// The bundled exemplar and mesh, relative to the repository.
+const GRAVEL: &str = "assets/gravel.png";
 #[cfg(all(feature = "gltf", feature = "xatlas"))]
-const BUNNY: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/meshes/bunny.glb");
+const BUNNY: &str = "assets/meshes/bunny.glb";
+
+/// `rel` in the repository the binary was built in (`target/release/examples/gpu_bench`
+/// is three levels below it), so a copy of the repository and its `target/` elsewhere
+/// still finds its assets; else in the directory the crate was compiled in.
+fn asset(rel: &str) -> PathBuf {
+    let from_exe = std::env::current_exe()
+        .ok()
+        .and_then(|exe| exe.ancestors().nth(4).map(|root| root.join(rel)));
+    match from_exe {
+        Some(path) if path.is_file() => path,
+        _ => Path::new(env!("CARGO_MANIFEST_DIR")).join(rel),
+    }
+}
 
 /// Sizes and repetitions of one benchmark configuration.
 struct Config {
@@ -211,7 +225,10 @@ fn run(config: &Config, quick: bool) -> texsyn::Result<String> {
     let start = Instant::now();
     // Analysis of the bundled exemplar and the device (TEXSYN_BACKEND / TEXSYN_ADAPTER
     // choose another adapter).
-    let session = Session::builder().exemplar_path(GRAVEL).seed(1).build()?;
+    let session = Session::builder()
+        .exemplar_path(asset(GRAVEL))
+        .seed(1)
+        .build()?;
     let ctx = session.context().clone();
     let synthesizer = Arc::clone(session.synthesizer());
     let setup = start.elapsed();
@@ -306,7 +323,7 @@ fn run(config: &Config, quick: bool) -> texsyn::Result<String> {
         "magnify x4",
         format!("{n}x{n} -> {}x{}", 4 * n, 4 * n),
         |ctx| {
-            let exemplar = texsyn::image_io::load_exemplar(GRAVEL.as_ref())?;
+            let exemplar = texsyn::image_io::load_exemplar(&asset(GRAVEL))?;
             let (small, hi) = texsyn::image_io::downsample_exemplar(&exemplar, 4)?;
             let (hi_w, hi_h) = (small.width * 4, small.height * 4);
             let session = Session::builder()
@@ -375,7 +392,7 @@ fn atlas_cases(
             config.runs
         };
         bench.case("atlas (bunny.glb)", format!("{n}x{n}"), |ctx| {
-            let (mut mesh, _) = texsyn::surface::gltf_io::load_mesh(BUNNY.as_ref())?;
+            let (mut mesh, _) = texsyn::surface::gltf_io::load_mesh(&asset(BUNNY))?;
             mesh.validate_and_repair()?;
             let options = SurfaceOptions {
                 atlas: AtlasOptions::for_size(n),
