@@ -11,9 +11,15 @@
 //! build with `shaders/<file>:<line>:<col>: error: ...` (`shaders/render/<file>:...` for a
 //! render shader), located in the original file (an included one where that is where the
 //! error is).
+//!
+//! It also checks that every struct Rust uploads and a shader reads
+//! ([`SHARED_STRUCTS`]) has the same fields at the same offsets with the same sizes on
+//! both sides; a mismatch fails the build naming the struct and field.
 
 #[path = "src/shader_preprocess.rs"]
 mod shader_preprocess;
+#[path = "build/shared_structs.rs"]
+mod shared_structs;
 
 use std::collections::BTreeSet;
 use std::fmt::Write as _;
@@ -33,6 +39,7 @@ fn main() {
     let out_dir = PathBuf::from(std::env::var_os("OUT_DIR").expect("OUT_DIR"));
     println!("cargo:rerun-if-changed=build.rs");
     println!("cargo:rerun-if-changed=src/shader_preprocess.rs");
+    println!("cargo:rerun-if-changed=build/shared_structs.rs");
     println!("cargo:rerun-if-changed={SHADER_DIR}");
     println!("cargo:rerun-if-changed={SHADER_DIR}/{RENDER_SUBDIR}");
 
@@ -56,6 +63,21 @@ fn main() {
         panic!(
             "{} shader error(s) in {SHADER_DIR}/:\n{report}",
             errors.len()
+        );
+    }
+    let shaders: Vec<ShaderModule> = compute.modules.into_iter().chain(render.modules).collect();
+    let (rust_files, mismatches) = shared_structs::check(&manifest_dir, &shaders);
+    for file in &rust_files {
+        println!("cargo:rerun-if-changed={file}");
+    }
+    if !mismatches.is_empty() {
+        for line in &mismatches {
+            println!("cargo:warning={line}");
+        }
+        panic!(
+            "{} host/shader struct layout mismatch(es):\n{}",
+            mismatches.len(),
+            mismatches.join("\n")
         );
     }
     for (name, code) in [
@@ -85,6 +107,8 @@ struct BuildResult {
     read: BTreeSet<String>,
     /// One formatted diagnostic (possibly several lines) per error.
     errors: Vec<String>,
+    /// Every validated shader.
+    modules: Vec<ShaderModule>,
 }
 
 /// The entry points of a validated shader.
@@ -159,6 +183,7 @@ fn build_shaders(
         code: String::new(),
         read: BTreeSet::new(),
         errors: Vec::new(),
+        modules: Vec::new(),
     };
     let roots = match kind {
         Kind::Compute => list_roots(shader_dir, "", &mut result.errors),
@@ -189,12 +214,15 @@ fn build_shaders(
                 continue;
             }
         };
-        let entries = validate_module(root, &pre, display_dir).and_then(|module| match kind {
-            Kind::Compute => compute_entry(&module, root, display_dir),
-            Kind::Render => render_entries(&module, root, display_dir),
+        let entries = validate_module(root, &pre, display_dir).and_then(|module| {
+            let entries = match kind {
+                Kind::Compute => compute_entry(&module, root, display_dir),
+                Kind::Render => render_entries(&module, root, display_dir),
+            }?;
+            Ok((entries, module))
         });
         match entries {
-            Ok(entries) => {
+            Ok((entries, module)) => {
                 let stem = root.rsplit('/').next().unwrap_or(root);
                 let name = stem.trim_end_matches(".wgsl").to_string();
                 passes.push(Pass {
@@ -202,9 +230,10 @@ fn build_shaders(
                     file: display(root),
                     root: root.clone(),
                     name,
-                    source: pre.text,
+                    source: pre.text.clone(),
                     entries,
                 });
+                result.modules.push(ShaderModule { pre, module });
             }
             Err(e) => result.errors.push(e),
         }
@@ -581,4 +610,49 @@ fn excerpt(out: &mut String, source: &str, span: naga::Span, label: &str) {
         " ".repeat(pad),
         "^".repeat(width)
     );
+}
+
+// Host/shader struct layouts: the pairs that `shared_structs` checks.
+
+/// A struct that Rust uploads and a shader reads.
+struct SharedStruct {
+    /// Where the Rust struct is expected; only consulted when several `#[repr(C)]`
+    /// structs of that name exist (a struct that moves to another file is still found).
+    rust_file: &'static str,
+    rust: &'static str,
+    /// The shader file defining the WGSL struct, relative to `shaders/` (a shared
+    /// file is checked through any shader that includes it).
+    wgsl_file: &'static str,
+    wgsl: &'static str,
+}
+
+/// Every struct shared by host and shaders: Rust uploads it as bytes (uniform or
+/// storage), a shader reads it. Add a pair here when a new one appears.
+const SHARED_STRUCTS: &[SharedStruct] = &[
+    // The uniform block of every compute pass.
+    SharedStruct {
+        rust_file: "src/passes/common.rs",
+        rust: "PassParams",
+        wgsl_file: "shared/common.wgsl",
+        wgsl: "Params",
+    },
+    // The mesh renderer's uniform blocks.
+    SharedStruct {
+        rust_file: "src/surface/render.rs",
+        rust: "Params",
+        wgsl_file: "render/mesh.wgsl",
+        wgsl: "Params",
+    },
+    SharedStruct {
+        rust_file: "src/surface/render.rs",
+        rust: "ViewUniform",
+        wgsl_file: "render/mesh.wgsl",
+        wgsl: "View",
+    },
+];
+
+/// A validated shader, kept for the layout check.
+struct ShaderModule {
+    pre: Preprocessed,
+    module: naga::Module,
 }
