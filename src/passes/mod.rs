@@ -6,6 +6,8 @@ pub mod advect;
 pub mod common;
 pub mod correct;
 pub mod correct_aniso;
+pub mod distortion;
+pub mod drift;
 pub mod fade;
 pub mod fill;
 pub mod gather;
@@ -17,6 +19,8 @@ pub mod plan;
 pub mod resample;
 pub mod upsample;
 pub mod upsample_aniso;
+pub mod velocity;
+pub mod velocity_texture;
 
 pub use plan::{DistanceMode, LevelPlan, PassKind, SynthParams, SynthPlan};
 
@@ -133,11 +137,11 @@ pub fn run_cpu_frame(
                 None
             }
             PassKind::Drift => {
-                advect::drift(&d.params, coords, velocity);
+                drift::drift(&d.params, coords, velocity);
                 None
             }
             PassKind::Distortion => {
-                advect::distortion(&d.params, coords, jac, surface);
+                distortion::distortion(&d.params, coords, jac, surface);
                 None
             }
             PassKind::Resample => {
