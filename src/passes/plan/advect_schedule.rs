@@ -34,9 +34,7 @@ fn finest_without_corrections(schedule: &[Dispatch], level: usize) -> Vec<Dispat
 /// phase (`drift`, 0 for none), as the finest level is, then corrected as in a
 /// synthesis. No jitter: it is a function of the pixel's place on the screen, so
 /// re-applied every frame it would pin the texture's detail to the screen while the flow
-/// moves it (measured: gravel, 256x256 vortex, 300 frames, three re-synthesized levels,
-/// energy at frame 300 0.0032 with it against 0.0022 without, warped difference 0.096
-/// against 0.077); the advected levels carry frame 0's jitter.
+/// moves it; the advected levels carry frame 0's jitter.
 fn resynthesized_levels(
     schedule: &[Dispatch],
     top: usize,
@@ -161,7 +159,7 @@ impl SynthPlan {
         out
     }
 
-    /// The dispatches of one advection frame (paper section 7), on the `levels` finest
+    /// The dispatches of one advection frame (Lefebvre & Hoppe 2006 §7), on the `levels` finest
     /// levels, coarse to fine. Each advected level: advect the coordinates in place, flag
     /// the pixels distorted beyond `c` (|J_obs - J|_F, Jacobian units), upsample only
     /// those from the coarser level, then correct with `passes` passes as synthesis does.
@@ -244,8 +242,8 @@ impl SynthPlan {
             // writes them back, and the flagged ones upsampled again from the coarser
             // level (on the coarsest level, which has nothing to upsample from, none is
             // flagged; on the coarsest advected level, with anchored renewals, mostly
-            // continued from an anchor instead). One pass where a separate upsampling of
-            // the flagged pixels read every pixel's flag: about 5% of a 512x512 frame.
+            // continued from an anchor instead). One pass rather than a separate
+            // upsampling of the flagged pixels, which read every pixel's flag.
             out.push(Dispatch {
                 kind: PassKind::Distortion,
                 level,
@@ -271,11 +269,8 @@ impl SynthPlan {
             // upsampled, else half of them (every pixel is corrected every other frame);
             // every other frame one of a coarser level's four runs (every pixel every
             // eighth frame; the two coarser levels take turns, so every frame costs about
-            // the same). Measured (README, 256x256 vortex over 300 frames): a quarter of
-            // the coarser levels' subpasses per frame gave the same figures as half; an
-            // eighth raises the energy at frame 300 by 2-5% (gravel, brick; the marble's
-            // veins stay), for a per-frame cost of 48-50% of a synthesis at 512x512 on
-            // lavapipe instead of 53-56%.
+            // the same). A quarter of the coarser levels' subpasses per frame looked as
+            // good as half, for less time.
             let passes = if level == coarsest && level < top {
                 self.advect_coarsest_passes(options)
             } else {
@@ -322,12 +317,7 @@ impl SynthPlan {
                             // frame's two one scores them, and the two swap every other
                             // frame. Each pixel has them at every `sets_every`-th
                             // correction. With `keep_look` every advected level runs its
-                            // four per frame and follows the same rule (fifty-fourth
-                            // session, gravel with `--fade 1`: every 2 at all three levels
-                            // 0.18% pops at a mean x1.17 against 0.21% at x1.19 with the
-                            // coarser two scoring every correction; `keep_look()`'s 4,
-                            // 0.20% at x1.17, the coarser corrections about a third
-                            // cheaper; brick and grass alike).
+                            // four per frame and follows the same rule.
                             // With more passes per frame (a keep-look level's
                             // `coarsest_passes`), the same over the level's corrections:
                             // class c's correction in pass p of frame f is its

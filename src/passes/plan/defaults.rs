@@ -3,39 +3,20 @@
 use super::SynthParams;
 use crate::analysis::Analysis;
 
-/// Default per-level randomness: a whole pixel at the coarse levels, so features are
-/// rearranged rather than the exemplar's layout reproduced, none at the finest levels
-/// so exemplar detail stays intact (measured: fine-level jitter raises the texture
-/// energy more than it adds variety). How far down the jitter reaches depends on the
-/// exemplar size, because the same coherent patch covers more of a small exemplar:
-/// measured largest verbatim region (3-4 seeds, 512x512 output) 0.25-0.35 of a 96 px
-/// exemplar and 0.25-0.28 of a 64 px one with the 128 px schedule; 0.17-0.26 and
-/// 0.19-0.27 with the schedules below.
-/// - min side 128..176: 0 on the three finest levels, 0.75 on the fourth, 1 above (0.5 on
-///   the fourth let the largest verbatim region reach 0.30-0.34 of a 128 px exemplar on
-///   2 of 5 seeds; 0.75 kept it at 0.15-0.28 for +0-4% texture energy (pink marble,
-///   energy x 1e3, mean of 5 seeds: 0.177 -> 0.183), where jitter one level further
-///   down costs +17-24%);
+/// Default jitter randomness of `level` (`finest` = the finest level's index): a whole
+/// pixel at the coarse levels, so features are rearranged rather than the exemplar's
+/// layout reproduced, none at the finest levels, so exemplar detail stays intact. The
+/// larger the exemplar (its shorter side), the more fine levels stay still, since a
+/// coherent patch of fixed pixel size covers less of it and seams multiply:
+/// - under 80: 0 on the finest, 1 above;
 /// - 80..128: 0 on the two finest, 0.5 on the third, 1 above;
-/// - under 80: 0 on the finest, 1 above.
-///
-/// Larger exemplars jitter less. With the 128 px schedule the patches keep their size in
-/// pixels, so they shrink against a larger exemplar and the seams multiply. Measured on
-/// photos resized to each size (three CC0 photos, and the 168-400 px samples of the
-/// `texture-synthesis` repository, not shipped), 512x512 outputs, seeds 1-3,
-/// full-resolution texture energy over `texture-synthesis`'s (median), 128 px schedule
-/// -> the ones below: 176 px 1.01 -> 0.93, 256 px 1.24 -> 1.14, 384 px 1.94 -> 1.27,
-/// 512 px 4.2 -> 2.45 (there `texture-synthesis` copies 28-39% of the exemplar
-/// verbatim). The largest verbatim region stayed at most 0.145 (176-287 px), 0.145
-/// (288-447 px, a brick wall included) and 0.177 (448-512 px) of the exemplar. One
-/// still level more than below reached 0.26-0.29 at 176-256 px and 0.21-0.48 on a 350
-/// px brick wall (regular textures tip over into copying first):
-/// - 176..288: 0 on the three finest levels, 0.25 on the fourth, 1 above;
+/// - 128..176: 0 on the three finest, 0.75 on the fourth, 1 above;
+/// - 176..288: 0 on the three finest, 0.25 on the fourth, 1 above;
 /// - 288..448: 0 on the four finest, 0.25 on the fifth, 1 above;
 /// - 448 and up: 0 on the five finest, 0.75 on the sixth, 1 above.
 ///
-/// `extra_still` levels more are still (the partly jittered level moves up with them):
-/// what [`SynthParams::extra_still_levels`] asks for.
+/// `extra_still` more levels are still (the partly jittered level moves up with them),
+/// as [`SynthParams::extra_still_levels`] asks.
 pub fn default_randomness(
     level: u32,
     finest: u32,
@@ -61,50 +42,35 @@ pub fn default_randomness(
 }
 
 /// At most this many correction passes at the second-finest level of an isometric
-/// synthesis from a large exemplar (see [`SynthParams::second_finest_passes`]).
+/// synthesis from a large exemplar ([`crate::analysis::LARGE_EXEMPLAR_PIXELS`]): that
+/// level is the costliest corrected one, and fewer passes there cost little quality.
 pub const LARGE_SECOND_FINEST_PASSES: u32 = 2;
 
-/// At most this many at the second-finest level of an isometric synthesis from a smaller
-/// exemplar (thirtieth session). There four passes took about half of a 512x512
-/// synthesis's GPU time from the bundled 128 px brick on lavapipe (80-140 ms); three,
-/// with the margins they shrink, 48-49 ms (`bench --per-pass`, 2 alternating runs). Texture
-/// energy +0.9 / +0.2 / 0.0% (full / half / quarter resolution, medians over 13 exemplars
-/// of 64-156 px x seeds 1-2; worst +3.7 / +0.8 / +0.1%), histogram distance 1.000 (worst
-/// +6.9%, the leopard). Along fields too (not on surfaces, nor in advection, which pins
-/// its passes): 13 exemplars x `swirl`, `perspective` and `rotate:30` (384x384, seed 1)
-/// gave texture energy 1.001 / 1.000 / 1.000, histogram distance 1.000 and Jacobian
-/// fidelity (within 15%, all pixels / away from seams) 0.999 / 1.000 of four passes'
-/// (medians; worst energy +0.7%, fidelity -2.9 / -0.9%), and a 512x512 swirl from the
-/// bundled gravel took 181-189 ms instead of 207-213 ms (`bench`, 2 alternating runs).
-/// Not with a feature channel, whose figures (README, *Controls*) were measured with four.
+/// At most this many at the second-finest level from a smaller exemplar, also along a
+/// field (not on surfaces or with a feature channel): about half the synthesis's GPU time
+/// went there with four passes, for little difference in quality.
 pub const SMALL_SECOND_FINEST_PASSES: u32 = 3;
 
 /// At most this many correction passes on a level without similarity sets of its own
-/// ([`crate::analysis::level_searched`]: its neighbourhood spans the exemplar, e.g. the
-/// two coarsest corrected levels of a 400 or 512 px exemplar, or of a 128 px one).
-/// Their only candidates are the coherent ones on a near-constant blur, and two passes
-/// settle them: measured on 17 exemplars of 128-512 px x seeds 1-2 (512x512, thirtieth
-/// session), 26 of the 34 outputs were the same bytes as with four passes, and the texture
-/// energy and histogram distance of all 34 were 0.988 / 0.996 / 0.996 and 0.989 of the
-/// four passes' (means; medians 1.000). Their exact-window margins halve with the
-/// passes: the two levels took 14.6-27.3 ms of a 400 px exemplar's 512x512 synthesis on
-/// lavapipe, 5.4-7.0 ms with two passes. One pass moved more outputs (histogram distance
-/// up to 2x on one). Not with a feature channel (`--feature-mask`), whose coarse passes
-/// arrange the features: a 128 px brick-wall mask synthesized through its coordinates
-/// measured a texture energy of 0.048 with the cap against 0.037 without (the test
-/// `feature_mask_carries_structure_that_colour_lacks`).
+/// ([`crate::analysis::level_searched`]: its neighbourhood spans the exemplar). Its only
+/// candidates are the coherent ones on a near-constant blur, which two passes settle, and
+/// its exact-window margin halves with the passes. Not with a feature channel, whose
+/// coarse passes arrange the features.
 pub const UNSEARCHED_PASSES: u32 = 2;
 
 /// What [`passes_at`] needs to know of the exemplar.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ExemplarShape {
+    /// Exemplar width in pixels.
     pub width: u32,
+    /// Exemplar height in pixels.
     pub height: u32,
     /// The analysis has a feature channel ([`Analysis::feature`]).
     pub feature: bool,
 }
 
 impl ExemplarShape {
+    /// The shape of an analysed exemplar.
     pub fn of(analysis: &Analysis) -> Self {
         Self {
             width: analysis.width,
@@ -141,7 +107,10 @@ pub fn passes_at(params: &SynthParams, level: u32, last: u32, exemplar: Exemplar
 }
 
 /// The second-finest level's passes when [`SynthParams::second_finest_passes`] is `None`
-/// (`anisometric`: along a field or on a surface; `surface`: atlas synthesis).
+/// (`anisometric`: along a field or on a surface; `surface`: atlas synthesis): `passes`,
+/// capped at [`LARGE_SECOND_FINEST_PASSES`] for an isometric synthesis from a large
+/// exemplar and at [`SMALL_SECOND_FINEST_PASSES`] from a smaller one without a feature
+/// channel; surfaces keep `passes`.
 pub fn default_second_finest_passes(
     passes: u32,
     anisometric: bool,

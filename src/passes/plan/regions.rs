@@ -14,22 +14,29 @@ use crate::passes::fill::SurfaceLayout;
 /// One level of the plan.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LevelPlan {
+    /// Pyramid level, 0 = coarsest.
     pub level: u32,
+    /// Exemplar pixels between neighbouring coordinates at this level (`h_l`).
     pub spacing: u32,
-    /// Absolute origin and size of the region computed at this level.
+    /// Absolute origin of the region computed at this level.
     pub origin: [i32; 2],
+    /// Size of that region in level pixels.
     pub size: [u32; 2],
     /// Offset of this level's coordinates in the concatenated coordinate array.
     pub coord_base: u32,
+    /// Jitter randomness at this level (fraction of `spacing`).
     pub randomness: f32,
     /// Pixels on each side of the region beyond what the finer level reads (0 for
     /// atlases, periodic outputs and level 0).
     pub margin: u32,
 }
 
+/// The plan of one synthesis: every level's region and the parameters it was made for.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SynthPlan {
+    /// The levels, coarsest first.
     pub levels: Vec<LevelPlan>,
+    /// The parameters (with a torus along no field: the identity field).
     pub params: SynthParams,
     /// Where the output window lies in the finest level's region.
     pub window_offset: [u32; 2],
@@ -42,23 +49,17 @@ pub struct SynthPlan {
     pub torus: Option<Torus>,
 }
 
-/// How a [`SynthParams::tileable_output`] whose sides are not multiples of 4 is made.
-/// Each level's period is half the finer one's, rounded up, and an odd period at the
-/// finest or second-finest level cannot be upsampled coherently across the wrap (the
-/// children of an odd number of parents are one more than the period): the texture
-/// jumped by a pixel there, a faint seam where the tiles meet (wrap-seam ratio 1.55-1.75
-/// at 65 and 129, leopard, seeds 1-3). So the levels are synthesized on a torus of
-/// `period` (each side the nearest multiple of 4, [`torus_period`]) along the field
-/// scaled by `output / period` on each axis, and a resampling pass (`resample.wgsl`)
-/// maps it onto the `output` grid: output pixel `x` takes the torus coordinate nearest to
-/// `u = (x + 0.5) period / output - 0.5` plus `J' (u - q)`, so that the texture advances
-/// exactly as the field asks per output pixel and the period is the output's. The
-/// coordinates are continuous (an anisometric plan, the identity field where none is
-/// given, with an isometric synthesis's passes); along no field the resampled ones are
-/// rounded to whole texels and the gather reads those, so coherent patches are exact
-/// copies of the exemplar, as in isometric synthesis (and the copy guard measures them).
-/// `GpuSynthesizer::plan_for` falls back to the output's own periods where the torus
-/// does not fit the device.
+/// How a [`SynthParams::tileable_output`] whose sides are not multiples of 4 is made: an
+/// odd period at the finest or second-finest level cannot be upsampled coherently across
+/// the wrap and leaves a faint seam. So the levels are synthesized on a torus of `period`
+/// (each side the nearest multiple of 4, [`torus_period`]) along the field scaled by
+/// `output / period`, and a resampling pass (`resample.wgsl`) maps it onto the `output`
+/// grid: output pixel `x` takes the torus coordinate nearest to
+/// `u = (x + 0.5) period / output - 0.5` plus `J' (u - q)`, so the texture advances as the
+/// field asks per output pixel and the period is the output's. Along no field the
+/// resampled coordinates are rounded to whole texels, so coherent patches stay exact
+/// copies of the exemplar. `GpuSynthesizer::plan_for` falls back to the output's own
+/// periods where the torus does not fit the device.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Torus {
     /// Sides of the synthesized torus (multiples of 4).
@@ -88,6 +89,7 @@ pub fn torus_period(n: u32) -> u32 {
     }
 }
 
+/// `x / 2` rounded towards negative infinity: the parent of absolute pixel `x`.
 fn floor_div2(x: i32) -> i32 {
     x >> 1
 }
@@ -471,9 +473,6 @@ impl SynthPlan {
 }
 
 impl SynthPlan {
-    /// Quantized Jacobians of every level's region, in the coordinate array's layout
-    /// (empty for isometric synthesis). Pixel `p` of level `l` samples the field at its
-    /// centre in output pixels.
     /// Whether every Jacobian of [`Self::jacobians`] is the identity: an anisometric plan
     /// whose field is the identity transform (advection without a field), not on a
     /// surface. The GPU passes then use the constant (`IDENTITY_J`), the same values.
@@ -483,6 +482,9 @@ impl SynthPlan {
             && self.params.field.as_ref().is_some_and(Field::is_identity)
     }
 
+    /// Quantized Jacobians of every level's region, in the coordinate array's layout
+    /// (empty for isometric synthesis). Pixel `p` of level `l` samples the field at its
+    /// centre in output pixels.
     pub fn jacobians(&self) -> Vec<[i32; 4]> {
         if let Some(d) = &self.params.surface {
             let n = self.levels.len();

@@ -8,13 +8,19 @@ use crate::passes::fill::FILL_ROW;
 /// What a dispatch does.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum PassKind {
+    /// Coherent upsampling of the coarser level (`upsample.wgsl`).
     Upsample,
+    /// Jitter of the upsampled coordinates (`jitter.wgsl`).
     Jitter,
+    /// One correction subpass (`correct.wgsl`).
     Correct,
+    /// Colours of the output window (`gather.wgsl`).
     Gather,
-    /// Anisometric variants (continuous coordinates, Jacobian field).
+    /// Anisometric upsampling (continuous coordinates, Jacobian field).
     UpsampleAniso,
+    /// Anisometric correction subpass.
     CorrectAniso,
+    /// Anisometric gather.
     GatherAniso,
     /// Atlas synthesis: refill the gutters through the indirection map.
     Fill,
@@ -27,7 +33,7 @@ pub enum PassKind {
     /// (one invocation, first in a frame).
     Drift,
     /// Advection frames with fading: the finest level's colours, pixels whose
-    /// coordinate jumped fading in over a few frames (`fade.rs`); in place of the gather.
+    /// coordinate jumped fading in over a few frames (`fade.wgsl`); in place of the gather.
     Fade,
     /// A tileable output made on a torus ([`Torus`]): the finest level's coordinates
     /// resampled onto the output's grid.
@@ -37,8 +43,11 @@ pub enum PassKind {
 /// One dispatch of the schedule: the GPU and the CPU mirror run the same list.
 #[derive(Clone, Copy, Debug)]
 pub struct Dispatch {
+    /// The pass (and so the pipeline) to run.
     pub kind: PassKind,
+    /// The level it works on (index into [`SynthPlan::levels`]).
     pub level: usize,
+    /// Its uniform parameters.
     pub params: PassParams,
 }
 
@@ -75,12 +84,8 @@ impl Dispatch {
     /// (`crate::gpu::synth`'s fine tables) instead of interpolating `et` and `qe`: an
     /// anisometric correction with the projected distance that reads quarter pixels
     /// (advection frames) of a level with tables (recognized by its table offset,
-    /// [`Analysis::table_base`], which skips levels without tables: until the
-    /// thirty-first session the GPU path compared it with `(levels - 1) w h`, which
-    /// stopped matching when level 0 lost its tables (twenty-fifth session), so the
-    /// frames interpolated four texels per read: the same values, about 1.3x the time).
-    /// A schedule reads the tables of one level, [`quarter_tables_level`]; the others
-    /// interpolate.
+    /// [`Analysis::table_base`], which skips levels without tables). A schedule reads the
+    /// tables of one level, [`quarter_tables_level`]; the others interpolate.
     pub fn reads_quarter_tables(&self, analysis: &Analysis) -> bool {
         self.kind == PassKind::CorrectAniso
             && self.params.quarter != 0
@@ -117,7 +122,7 @@ impl SynthPlan {
     /// are exactly what the full subpasses would give, and after the last of the
     /// level's `4 passes` subpasses that is everything inside the margin (plus the ring
     /// the finest level's gather reads): the output does not change, and the coarse
-    /// levels, mostly margin, cost ~40% less.
+    /// levels, mostly margin, cost less.
     pub fn schedule_with(&self, analysis: &Analysis, shrink: bool) -> Vec<Dispatch> {
         self.schedule_inner(analysis, shrink, true)
     }
@@ -143,12 +148,9 @@ impl SynthPlan {
         // for itself and its 8 neighbours after the coordinates (`flag_base`); a pixel
         // whose stamp is below the stamp of its class's latest subpass with the same
         // candidates (`sets_every` alternates two kinds) is skipped. A level's first
-        // pass (of each kind) runs in full, and so do jittered levels (below). Measured on
-        // lavapipe, 512x512: the corrections took 0.80-0.90 of their time where the
-        // copy guard keeps two more still levels, 0.84-0.90 with the default schedule
-        // (gravel 128 and 512 px, `GpuSynthesizer::profile`). Not in atlas synthesis,
-        // whose fills rewrite the gutters between subpasses, nor in advection
-        // (`advect_schedule`, whose coordinates move between frames, and
+        // pass (of each kind) runs in full, and so do jittered levels (below). Not in
+        // atlas synthesis, whose fills rewrite the gutters between subpasses, nor in
+        // advection (`advect_schedule`, whose coordinates move between frames, and
         // `advect_first_schedule`: `skip` off). The CPU mirror computes every pixel: the
         // same bytes.
         let skipping = skip && self.params.surface.is_none();
@@ -221,8 +223,7 @@ impl SynthPlan {
             let margin = self.levels[level].margin as i32;
             let mut subpass = 0;
             // Only on unjittered levels: on a jittered one few pixels settle before the
-            // last pass (0-12% could be skipped in passes 1-2, 22-53% in pass 3, counted
-            // with the CPU mirror), which did not pay for the stamps.
+            // last pass, which does not pay for the stamps.
             let skipping = skipping && params.jitter_amp == 0;
             // Per class and kind of pass (with the sets, without): the stamp of its
             // latest subpass of that kind at this level (0: none yet).
