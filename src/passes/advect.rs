@@ -1,15 +1,11 @@
-//! Mirrors of `shaders/advect.wgsl` and `shaders/distortion.wgsl`: texture advection
-//! (paper section 7, ALGORITHM.md "Advection"). Per frame, the finest levels' continuous
-//! coordinates are advected without resampling, `S[p] = S'[p - k] - J(p) (V(p) - k)`
-//! with `k` one whole shift of the level for all pixels (so neighbours stay coherent): in
-//! frames the change of the drift's whole level pixels ([`whole_shift`]; the drift sums
-//! the velocity at the window's centre in whole finest pixels), so the texture moves with the
-//! flow (a uniform flow of whole pixels translates it exactly, seams included); where the
-//! advected coordinates no longer follow the desired Jacobian (`|J_obs - J|_F > c`,
-//! divergent or shearing flows stretch them; steps off by a whole pixel on both sides
-//! are seams, not distortion) the pixel is upsampled again from the coarser level (or,
-//! with anchored renewals on the coarsest advected level, continues a nearby anchor
-//! straightened along `J`); then the usual correction passes run.
+//! Mirror of `shaders/advect.wgsl` (and `shared/advect.wgsl`): texture advection
+//! (Lefebvre & Hoppe 2006 §7). Per frame, the finest levels' continuous coordinates are
+//! advected without resampling, `S[p] = S'[p - k] - J(p) (V(p) - k)`, with `k` one whole
+//! shift of the level for all pixels so that neighbours stay coherent: the change of the
+//! drift's whole level pixels ([`whole_shift`]), so a uniform flow of whole pixels
+//! translates the texture exactly, seams included. The distortion pass
+//! ([`crate::passes::distortion`]) then renews the pixels the flow distorted, and the
+//! usual correction passes run. The frames' options are [`AdvectOptions`].
 
 mod options;
 

@@ -177,8 +177,8 @@ pub fn wrap(c: i32, n: i32) -> i32 {
 }
 
 /// `wrap` for `c` in `[-2n, 3n)`, without a division: integer division is by far the
-/// most expensive operation on CPU implementations of Vulkan (lavapipe scalarizes it),
-/// and the correction wraps ~30 coordinates per pixel. Its callers stay in range: a
+/// most expensive operation on CPU implementations of Vulkan, and the correction wraps
+/// about 30 coordinates per pixel. Its callers stay in range: a
 /// coordinate in `[0, n)`, an offset of at most `n/2`, and a step below `n`.
 #[inline]
 pub fn wrap_near(c: i32, n: i32) -> i32 {

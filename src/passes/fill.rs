@@ -2,7 +2,7 @@
 //! the anisometric passes on a texture atlas, where texels outside the charts are not
 //! corrected and, after every pass, the gutter texels around each chart are refilled
 //! through the indirection map with the coordinates of the same surface point in the
-//! neighbouring chart (paper section 6). Correcting a texel near a chart edge then reads,
+//! neighbouring chart (Lefebvre & Hoppe 2006 §6). Correcting a texel near a chart edge then reads,
 //! at its immediate neighbours, the texture across the seam.
 //!
 //! Filling the gutter once per pass and reading it like any texel is the same as

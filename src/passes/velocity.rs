@@ -1,10 +1,8 @@
 //! Mirror of `shaders/velocity.wgsl` (and `shared/velocity.wgsl`): a caller's velocities,
 //! output pixels per unit time, quantized for an advection frame.
 
-/// Fractional bits of velocities (1/1024 output pixel per frame). The precision matters
-/// because a smooth flow's quantization error is the same every frame and adds up: at 1/16 pixel,
-/// a vortex's velocities came in bands a few pixels wide whose edges tore the texture
-/// by a whole pixel every 16 frames.
+/// Fractional bits of velocities (1/1024 output pixel per frame): a smooth flow's
+/// quantization error is the same every frame and adds up, so it must be small.
 pub const VELOCITY_FRAC: u32 = 10;
 /// Largest speed, output pixels per frame.
 pub const MAX_SPEED: f32 = 64.0;
