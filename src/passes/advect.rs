@@ -11,12 +11,11 @@ mod options;
 
 use super::common::{fit_coord, wrap, PassParams};
 pub use super::distortion::{distortion, distortion_max, flagged, seam_err};
-pub use super::drift::drift;
 use super::drift::centre_velocity;
+pub use super::drift::drift;
 pub use super::velocity::{MAX_SPEED, VELOCITY_FRAC};
 pub use options::{
-    AdvectOptions, KEEP_LOOK_FADE, KEEP_LOOK_REMAKE_THRESHOLD, MAX_ANCHOR_SPACING,
-    MAX_FADE_FRAMES,
+    AdvectOptions, KEEP_LOOK_FADE, KEEP_LOOK_REMAKE_THRESHOLD, MAX_ANCHOR_SPACING, MAX_FADE_FRAMES,
 };
 
 /// Bits dropped from `J V` (1/2^(JAC_FRAC + VELOCITY_FRAC)) to reach coordinates

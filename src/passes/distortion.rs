@@ -5,7 +5,6 @@
 use super::common::{fit_coord, region_index, scaled_jd, PassParams};
 use super::fill::in_chart;
 
-
 fn step_err(p: &PassParams, d: [i32; 2]) -> u32 {
     let mut e = d;
     if p.tileable != 0 {

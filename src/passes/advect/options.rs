@@ -324,7 +324,6 @@ impl Default for AdvectOptions {
 mod tests {
     use super::*;
 
-
     /// The look kept where J is constant, the texture carried along a varying field.
     #[test]
     fn recommended_options_follow_the_jacobian() {

@@ -128,7 +128,12 @@ impl SynthPlan {
     }
 
     /// [`Self::schedule_with`]; with `skip`, the corrections skip settled pixels (below).
-    pub(super) fn schedule_inner(&self, analysis: &Analysis, shrink: bool, skip: bool) -> Vec<Dispatch> {
+    pub(super) fn schedule_inner(
+        &self,
+        analysis: &Analysis,
+        shrink: bool,
+        skip: bool,
+    ) -> Vec<Dispatch> {
         let aniso = self.params.anisometric();
         let (upsample, correct, gather) = if aniso {
             (
