@@ -31,10 +31,13 @@ use plan::Dispatch;
 /// A synthesized window: exemplar coordinates and RGBA8 colours, row-major.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Synthesis {
+    /// Window width in pixels.
     pub width: u32,
+    /// Window height in pixels.
     pub height: u32,
     /// Exemplar coordinates in units of `2^-coord_frac` exemplar pixels.
     pub coords: Vec<[i32; 2]>,
+    /// RGBA8 colours.
     pub colors: Vec<[u8; 4]>,
     /// 0 for isometric synthesis (integer pixels), [`common::COORD_FRAC`] for
     /// anisometric synthesis (continuous coordinates).
