@@ -5,6 +5,8 @@
 use super::common::{fit_coord, region_index, scaled_jd, PassParams};
 use super::fill::in_chart;
 
+/// Squared length of a coordinate difference, wrapped to the nearest representative for
+/// tileable exemplars and clamped so its square cannot overflow.
 fn step_err(p: &PassParams, d: [i32; 2]) -> u32 {
     let mut e = d;
     if p.tileable != 0 {
@@ -23,7 +25,6 @@ fn step_err(p: &PassParams, d: [i32; 2]) -> u32 {
 }
 
 /// Whether the distortion pass flags region pixel `(x, y)` for upsampling again, from
-
 /// the advected coordinates in the scratch region (see `distortion.wgsl`).
 pub fn flagged(
     p: &PassParams,
