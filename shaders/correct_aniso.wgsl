@@ -9,7 +9,7 @@
 
 // 8 i16 values (an Et or qe texel, or sums of them) as two vec4<i32>. Helpers return it
 // by value: passing pointers through nested calls made lavapipe put the variables in
-// scratch memory, allocated on every dispatch (measured ~10 ms per dispatch).
+// scratch memory, allocated on every dispatch.
 struct Vec8 {
     lo: vec4<i32>,
     hi: vec4<i32>,

@@ -1,18 +1,16 @@
 // Advection: flags the pixels whose advected coordinates no longer follow the desired
-// Jacobian (mirror: src/passes/advect.rs). Per axis, the observed step to a neighbour
+// Jacobian (mirror: src/passes/distortion.rs). Per axis, the observed step to a neighbour
 // (the better of the two sides, so a patch seam on one side does not count) is compared
 // with h J e; an axis whose better side is still off by a whole pixel step or more lies
 // between two seams (a thin strip of its own patch, e.g. a line of mortar) and counts
 // 0: flow distortion grows a fraction of a pixel per frame and is caught below that,
-// while re-upsampling such strips every frame broke them apart (measured: brick under a
-// uniform sub-pixel flow, energy 2.6x after 60 frames, now 0.6x). A pixel is flagged
+// while re-upsampling such strips every frame broke them apart. A pixel is flagged
 // when |J_obs - J|_F > c, i.e. the squared errors exceed params.distortion_max =
 // (c h 256)^2, and also when both of its axes lie between two seams: a pixel that
 // continues no neighbour on either axis belongs to no patch, and left alone such pixels
 // spread under a turning flow. The correction then settles them on the exemplar's
 // flattest content (the best match for an incoherent neighbourhood), and the texture
-// blurs. Measured (README): the grass's sharpness fell from 1.25 to 0.41 over a 300-frame
-// vortex, and only to 1.05 once they are flagged. params.distortion_max = 0xffffffff flags
+// blurs. params.distortion_max = 0xffffffff flags
 // nothing (level 0, the pyramid's coarsest, which has nothing to upsample from).
 // Reads the advected coordinates from the scratch region (flag_base) and writes them
 // back to the level, flagged pixels upsampled again from the coarser level
@@ -68,11 +66,11 @@ fn axis_err(q: vec2<i32>, s: vec2<i32>, e: vec2<i32>, expected: vec2<i32>) -> u3
 // whole pixel step or more (no anchor in the same patch) the pixel is upsampled. Only
 // anchors in the chart with the pixel's own desired Jacobian count: along a varying field
 // the flowing content must be turned back all the time, and continuing anchors there
-// popped more than upsampling (measured, src/passes/advect.rs). A share
+// popped more than upsampling. A share
 // of the renewals (params.anchor >> 8, of 256; decided per anchor block and the content
 // it shows) is upsampled anyway: only anchored renewals never bring back the coarse
 // levels' large structures, which then break up at the block edges over hundreds of
-// frames (measured: marble veins, src/passes/advect.rs).
+// frames (a marble's veins).
 fn renewal(q: vec2<i32>, i: u32, s: vec2<i32>) -> vec2<i32> {
     let b = i32((params.anchor | u32(opaque)) & 255u);
     if (b == 0) {

@@ -1,4 +1,4 @@
-// Advection: the frames' drift (mirror: src/passes/advect.rs, drift). One invocation adds
+// Advection: the frames' drift (mirror: src/passes/drift.rs). One invocation adds
 // the velocity at the output window's centre, rounded to whole finest pixels, to the
 // drift kept in the coordinate buffer at params.drift (the entry before this frame, then
 // the one after). The advect pass moves each level by the change of the drift's whole

@@ -17,8 +17,8 @@
 // The pop test is the mean change over the pixel's 3x3 neighbourhood within its 8x8
 // workgroup tile (pixels that did not jump count 0), shared through workgroup memory: an
 // isolated speck that changed is no pop, a patch that changed is. A neighbourhood that
-// crossed tiles would need a pass of its own and nine reads per pixel (29 ms of a 512x512
-// frame on lavapipe, where a pass costs about its memory accesses; this one about 13).
+// crossed tiles would need a pass of its own and nine reads per pixel, about twice this
+// pass's cost.
 #include "shared/common.wgsl"
 #include "shared/aniso.wgsl"
 #include "shared/advect.wgsl"

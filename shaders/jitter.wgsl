@@ -37,8 +37,7 @@ fn fit_jittered(c: vec2<i32>) -> vec2<i32> {
     let f = vec2<u32>(params.coord_frac);
     // `opaque` keeps mirror()'s branch on n from depending on uniforms alone: lavapipe
     // would otherwise specialize the shader on the margin and size and compile a new
-    // variant for every level (measured 1.4-1.8 ms per jitter dispatch, against 0.2-0.5
-    // for the upsampling of the same level).
+    // variant for every level.
     let m = params.margin | opaque;
     let lo = vec2<i32>(m) << f;
     let hi = ((params.ex_size | vec2<i32>(opaque)) - vec2<i32>(1 + m)) << f;

@@ -1,4 +1,4 @@
-// Magnification (mirror: src/passes/magnify.rs; paper sections 5-6): renders the
+// Magnification (mirror: src/passes/magnify.rs; Lefebvre & Hoppe 2006 §5-6): renders the
 // synthesized window at `magnify` times its resolution from a higher-resolution
 // exemplar E_H (bound as the colours, size hi_size = magnify x the analysed one).
 // Output pixel o sits at x = (o + 1/2) / F - 1/2 in synthesized pixels; it blends the

@@ -1,6 +1,6 @@
 // Advection: quantizes a caller's velocity buffer (vec2<f32> per output pixel, pixels
 // per unit time, row-major) for the frame (shared/velocity.wgsl; mirror:
-// src/gpu/advect.rs quantize_velocity).
+// src/passes/velocity.rs).
 #include "shared/velocity.wgsl"
 
 @group(0) @binding(1) var<storage, read> input: array<vec2<f32>>;

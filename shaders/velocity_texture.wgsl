@@ -1,7 +1,7 @@
 // Advection: quantizes a caller's velocity texture (red, green = x, y velocity in
 // output pixels per unit time, one texel of mip level 0 per output pixel; any float
 // format) for the frame, as velocity.wgsl does a buffer (shared/velocity.wgsl; mirror:
-// src/gpu/advect.rs quantize_velocity).
+// src/passes/velocity_texture.rs).
 #include "shared/velocity.wgsl"
 
 @group(0) @binding(1) var input: texture_2d<f32>;

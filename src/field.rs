@@ -1,4 +1,4 @@
-//! Jacobian fields for anisometric synthesis (paper section 5).
+//! Jacobian fields for anisometric synthesis (Lefebvre & Hoppe 2006 §5).
 //!
 //! A field gives, at every output position `x` (absolute output pixels, the same
 //! coordinates as `SynthParams::origin`), the 2x2 Jacobian `J(x)` that maps an offset in

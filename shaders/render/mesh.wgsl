@@ -6,7 +6,7 @@
 // centred at ((i + 0.5) / w, (j + 0.5) / h)). Two modes:
 // * mode 0 (colour): `tex` is the colour atlas (mipmapped), sampled with `samp`
 //   (bilinear, trilinear between mips, clamped to the edge);
-// * mode 1 (magnified, paper section 5): `coords` holds per atlas texel q the synthesized
+// * mode 1 (magnified, Lefebvre & Hoppe 2006 §5): `coords` holds per atlas texel q the synthesized
 //   position S[q] in low-resolution exemplar pixels, `jac` the Jacobian J[q]
 //   ([j00, j01, j10, j11], column 0 = d(exemplar)/d(atlas x)), and `tex` the
 //   high-resolution exemplar, `factor` times larger (mipmapped, `samp` repeats it). At

@@ -78,16 +78,14 @@ struct Params {
 // 0 at run time (the correction passes set it from global_invocation_id.z, always 0),
 // but unknown to the compiler. Mixed into the uniforms that steer branches and loops:
 // lavapipe otherwise specializes ("inlines") such uniforms and compiles a new variant of
-// the shader for every new combination of values, i.e. for nearly every dispatch
-// (measured ~10 ms per dispatch of the anisometric correction).
+// the shader for every new combination of values, i.e. for nearly every dispatch.
 var<private> opaque: i32;
 
 // Switches that stay fixed for a whole dispatch, as pipeline-overridable constants: one
 // pipeline per combination, built on first use (crate::gpu::synth::Variant). A branch on
 // them is compiled out. As uniforms they had to be mixed with `opaque`, which made the
 // branch divergent for the compiler, and CPU drivers then ran both sides of it for every
-// pixel (measured: the unused distance and the wrap-around arithmetic cost the
-// correction ~25%). Each equals the PassParams field of the same name, which the CPU
+// pixel. Each equals the PassParams field of the same name, which the CPU
 // mirror reads.
 override TILEABLE: bool = false;
 override FULL_DISTANCE: bool = false;
@@ -107,7 +105,7 @@ override FINE_TABLES: bool = false;
 override IDENTITY_J: bool = false;
 // params.nearest and params.seam_blend (the gathers). As uniforms mixed with `opaque`,
 // both sides of each branch ran: the anisometric gather of an advection frame read four
-// texels and the four neighbours it then ignored (measured 10.8 -> 3.1 ms at 512x512).
+// texels and the four neighbours it then ignored.
 override NEAREST: bool = false;
 override SEAM_BLEND: bool = false;
 // params.k: the similarity-set size (1..=8), so that the candidate loop unrolls.

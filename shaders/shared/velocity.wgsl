@@ -1,6 +1,6 @@
 // Quantization of a velocity (output pixels per unit time) times the time step to
 // 1/1024 pixel per frame, shared by velocity.wgsl (a caller's buffer) and
-// velocity_texture.wgsl (a caller's texture); mirror: src/gpu/advect.rs
+// velocity_texture.wgsl (a caller's texture); mirror: src/passes/velocity.rs
 // quantize_velocity. Non-finite components count as 0 and speeds are clamped to +-64
 // pixels per frame, per component.
 

@@ -1,4 +1,4 @@
-//! Appearance space (paper section 3): per level, every exemplar pixel's 5x5
+//! Appearance space (Lefebvre & Hoppe 2006 §3): per level, every exemplar pixel's 5x5
 //! Gaussian-weighted neighbourhood (spacing `h_l`) is reduced by PCA to 8 numbers, the
 //! transformed exemplar `Et_l`. Then the runtime neighbourhood of a pixel, `Et_l` at its
 //! four diagonal neighbours (32D), is reduced by a second PCA to the basis `P_l` (8x32).

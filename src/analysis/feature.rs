@@ -1,4 +1,4 @@
-//! Feature-preserving appearance (paper section 3.2): a binary feature mask (mortar
+//! Feature-preserving appearance (Lefebvre & Hoppe 2006 §3.2): a binary feature mask (mortar
 //! between bricks, cracks, the outlines of spots) becomes a signed-distance channel that
 //! is appended to the colour channels before the Gaussian stack and the 5x5
 //! neighbourhood gathering, so the PCA sees it like any colour. Synthesis (the GPU
@@ -20,21 +20,15 @@
 //! 3. The channel is `w * sigma_colour * (s - mean(s)) / std(s)`: standardised, then
 //!    scaled so that at weight `w = 1` ([`DEFAULT_FEATURE_WEIGHT`]) its variance equals
 //!    the total variance of the colour channels (the sum over R, G, B), whatever the
-//!    exemplar's contrast. `w` trades structure against colour fidelity (paper Figure 6);
+//!    exemplar's contrast. `w` trades structure against colour fidelity (Lefebvre & Hoppe 2006, Figure 6);
 //!    a very large `w` makes synthesis ignore colour and turns noisy.
 //!
 //! A mask that is all feature or all background gives a constant `s`; its channel is then
 //! zero (no information, and nothing is divided by a zero deviation).
 //!
-//! The defaults were chosen by measurement (512x512 outputs, masks thresholded from the
-//! exemplars' dark mortar / cracks): the channel trades colour fidelity for structure. On
-//! a stone wall it cuts broken-up mortar (share of the synthesized mask's pixels in
-//! fragments under 20 px, seeds 1-6: 26.9% without the channel, 22.3% at `w = 1`) while
-//! the colour texture energy rises 9.6%; on brick mortar +5.3%, on cracked earth +15%.
-//! Until the forty-ninth session `dmax` was 4 px (chosen at 256x256 against 2 and 8):
-//! about the same structure (20.8% on the stone wall) for +20%, +9.7% and +80%. A deeper
-//! distance constrains where inside a region each pixel comes from, which the colours
-//! already decide (README, *Controls*; docs/HISTORY.md).
+//! The channel trades colour fidelity for structure: it keeps features such as mortar
+//! whole while the colour texture energy rises somewhat; the defaults below were chosen
+//! by measurement on masks thresholded from exemplars' mortar and cracks.
 
 use std::path::{Path, PathBuf};
 
@@ -46,15 +40,12 @@ use crate::error::{Error, Result};
 /// variance as all colour channels together.
 pub const DEFAULT_FEATURE_WEIGHT: f32 = 1.0;
 /// Default weight with [`super::FeatureMode::Sets`] and [`super::FeatureMode::Both`]:
-/// there the channel steers the similarity-set search, and at weight 1 it changed nothing
-/// measurable (stone33, 512x512, seeds 1-2); 4, 16 and 64 gave about the same sets.
+/// there the channel steers the similarity-set search, where weight 1 changes little and
+/// 4 to 64 give about the same sets.
 pub const DEFAULT_SETS_FEATURE_WEIGHT: f32 = 16.0;
 /// With [`super::FeatureMode::Both`], the share of the weight the channel has in the
-/// appearance vectors the synthesis matches (the sets get all of it). Measured (fiftieth
-/// session; 512x512, seeds 1-6, cleaned masks, weight 16): at 1/128 both the colour
-/// energy and the breakage fell on all four measured exemplars; at 1/64 the cracked
-/// earth's energy rose 5% over no mask, at 1/32 the GIMP brick's, stone33's and the
-/// cracked earth's (README, *Controls*).
+/// appearance vectors the synthesis matches (the sets get all of it): light enough that
+/// the colour energy does not rise over no mask.
 pub const BOTH_APPEARANCE_SHARE: f32 = 1.0 / 128.0;
 
 /// The default weight of a mode (`AnalysisOptions::feature_weight` = `None`).
@@ -66,13 +57,9 @@ pub fn default_weight(mode: super::FeatureMode) -> f32 {
 }
 /// Largest accepted feature weight (beyond it colour no longer matters at all).
 pub const MAX_FEATURE_WEIGHT: f32 = 100.0;
-/// Default clamp `dmax` of the signed distance, in exemplar pixels. Measured
-/// (forty-ninth session; README, *Controls*): against 4 px, the default until then, 1 px
-/// keeps about as much of the features whole for much less colour energy (stone33,
-/// thresholded mask, 512x512, seeds 1-6: energy +20% -> +9% over no mask, mortar in
-/// fragments 20.8% -> 22.3%, no mask 26.9%; cracked earth +80% -> +15%): a deeper
-/// distance constrains where inside a region each pixel comes from, which the colours
-/// already decide.
+/// Default clamp `dmax` of the signed distance, in exemplar pixels: 1 px keeps about as
+/// much of the features whole as 4 for much less colour energy; a deeper distance
+/// constrains where inside a region each pixel comes from, which the colours decide.
 pub const DEFAULT_FEATURE_CLAMP: f32 = 1.0;
 /// Accepted range of the clamp: below 0.5 every pixel would be clamped (the smallest
 /// |distance| is 0.5).

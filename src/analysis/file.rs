@@ -37,7 +37,7 @@
 //! u8  feature mask used: 0 none, 1 in the appearance vectors, 2 in the similarity sets
 //!     only (FeatureMode::Sets; older texsyn builds refuse 2 with a clear error), 3 in
 //!     both (FeatureMode::Both, the sets and a share of the weight in the appearance
-//!     vectors; builds before the fiftieth session refuse 3 with a clear error)
+//!     vectors; older builds refuse 3 with a clear error)
 //! f32 feature weight, f32 feature clamp (dmax), f32 mask coverage   (all 0 without a mask)
 //! ```
 //!

@@ -1,4 +1,4 @@
-//! k-coherence similarity sets (paper section 4, after Tong et al. 2002): for every
+//! k-coherence similarity sets (Lefebvre & Hoppe 2006 §4, after Tong et al. 2002): for every
 //! exemplar pixel `u`, the `k - 1` most similar other pixels in appearance space,
 //! excluding pixels closer than a radius to `u` so that the set offers real
 //! alternatives. Stored as offsets `C_i(u) - u`.

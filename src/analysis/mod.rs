@@ -1,4 +1,4 @@
-//! Host-side exemplar analysis (paper sections 3-4): Gaussian stack, 5x5 appearance
+//! Host-side exemplar analysis (Lefebvre & Hoppe 2006 §3-4): Gaussian stack, 5x5 appearance
 //! vectors reduced to 8D by PCA, the 4-diagonal runtime neighbourhoods and their 8D
 //! projection, and k-coherence similarity sets. Everything the GPU needs is quantized to
 //! integers here so that the GPU passes and their CPU mirrors compute identical bytes.
@@ -145,7 +145,7 @@ pub enum AppearanceSpace {
     #[default]
     Neighborhood,
     /// The pixel's own channels only (3D for RGB, plus the feature channel if any): plain
-    /// colour, for comparison (paper Figure 4). Still projected by PCA into the same 8D
+    /// colour, for comparison (Lefebvre & Hoppe 2006, Figure 4). Still projected by PCA into the same 8D
     /// `Et` (the components beyond the input dimension are zero), so synthesis costs the
     /// same.
     Color,
@@ -180,30 +180,23 @@ impl std::str::FromStr for AppearanceSpace {
 pub enum FeatureMode {
     /// The paper's way (section 3.2): the channel joins the appearance vectors that the
     /// synthesis matches and the similarity sets are found with. Structures stay whole
-    /// (on a stone wall, with a cleaned mask, the mortar broken into small fragments falls
-    /// from 6.6% to 3.6%), but the 8D appearance space then also carries the channel, and
-    /// the colour texture energy rises where the colours already show the features (4-58%
-    /// on three of the four measured exemplars; README, *Controls*). The mode for
-    /// structure the colours do not show.
+    /// but the 8D appearance space then also carries the channel, and the colour texture
+    /// energy rises where the colours already show the features. The mode for structure
+    /// the colours do not show.
     Appearance,
     /// The channel shapes the similarity sets only: the exemplar places a pixel may jump
     /// to have its colour neighbourhood *and* its feature context, while the appearance
     /// vectors the synthesis matches are those of the colours alone, as without a mask.
-    /// A smaller structural gain than `Appearance`, without its colour cost (README,
-    /// *Controls*). The appearance step runs twice, so the analysis takes about a third
-    /// longer (stone33, 156x156: 428-488 against 307-392 ms, three runs each); the
+    /// A smaller structural gain than `Appearance`, without its colour cost. The
+    /// appearance step runs twice, so the analysis takes about a third longer; the
     /// runtime is the same.
     Sets,
     /// Both (the default): the similarity sets are searched as with `Sets`, and the
     /// appearance vectors the synthesis matches carry the channel too, lightly, at
     /// [`feature::BOTH_APPEARANCE_SHARE`] of the weight (1/128: 0.125 at the default 16).
-    /// Measured (fiftieth session, README, *Controls*; 512x512, seeds 1-6, cleaned
-    /// masks): against no mask, the colour texture energy 1-6% lower and the features
-    /// broken into small fragments 6-38% less on all four measured exemplars (bundled
-    /// brick, GIMP brick, stone wall, cracked earth), where `Sets` left more fragments on
-    /// the bundled brick and `Appearance` raised the energy on three. With raw
-    /// thresholded masks the energy fell on all four, the breakage on two of them. Where
-    /// the colours do not show the structure at all it barely helps: use `Appearance`.
+    /// Against no mask it lowers both the colour texture energy and the breakage of the
+    /// features. Where the colours do not show the structure at all it barely helps: use
+    /// `Appearance`.
     /// The analysis costs as in `Sets`; the runtime is the same.
     #[default]
     Both,
@@ -262,7 +255,7 @@ pub struct AnalysisOptions {
     pub threads: usize,
     /// Appearance vector: 5x5 neighbourhoods (default) or plain colour.
     pub appearance: AppearanceSpace,
-    /// Optional binary feature mask of the exemplar's size (paper section 3.2): its
+    /// Optional binary feature mask of the exemplar's size (Lefebvre & Hoppe 2006 §3.2): its
     /// clamped signed-distance field becomes an extra channel of the exemplar before the
     /// Gaussian stack and the neighbourhood PCA (see [`feature`]). `None`: colour only.
     pub feature_mask: Option<FeatureMask>,
@@ -801,13 +794,10 @@ pub fn analyze(
             // coherent ones). Saves a quarter of the analysis time of a 128x128 exemplar.
             //
             // Large exemplars (256x256 pixels and more) search their sets in Et alone (8D,
-            // the 5x5 neighbourhood) with less effort (`SimilarityQuery::light`): measured
-            // on 400 and 512 px photos, half the effort took a third less CPU time (2.5 ->
-            // 1.7 s at 400 px) for the same texture energy (within 5%, either sign) and
-            // verbatim figures, and the lighter search of the twenty-fourth session 20-30%
-            // less time again for the same medians; smaller exemplars keep the 16D
-            // features (Et and the projected runtime neighbourhood) and the full effort,
-            // which cost them little.
+            // the 5x5 neighbourhood) with less effort (`SimilarityQuery::light`): much
+            // less CPU time for the same texture energy and verbatim figures; smaller
+            // exemplars keep the 16D features (Et and the projected runtime
+            // neighbourhood) and the full effort, which cost them little.
             let q = appearance::quantize_level(
                 &et,
                 ex.width,

@@ -12,12 +12,15 @@ pub const COORD_FRAC: u32 = 8;
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
 pub struct PassParams {
     /// Exemplar width, height.
+    /// Exemplar size in pixels.
     pub ex_size: [i32; 2],
-    /// Absolute position of this level's region origin, and the region size.
+    /// Absolute position of this level's region origin.
     pub origin: [i32; 2],
+    /// Size of this level's region in level pixels.
     pub size: [i32; 2],
-    /// Same for the parent (coarser) level; upsample reads it.
+    /// Absolute origin of the parent (coarser) level's region; upsample reads it.
     pub parent_origin: [i32; 2],
+    /// Size of the parent's region ([0, 0] at level 0).
     pub parent_size: [i32; 2],
     /// Correction subpass parity (absolute pixel position mod 2).
     pub parity: [i32; 2],
@@ -32,6 +35,7 @@ pub struct PassParams {
     pub margin: i32,
     /// Level index `l`.
     pub level: u32,
+    /// Jitter hash seed.
     pub seed: u32,
     /// Jitter amplitude `h_l * r_l` in 1/16 pixel.
     pub jitter_amp: i32,
@@ -41,14 +45,19 @@ pub struct PassParams {
     pub shift: u32,
     /// Coherence bias in 1/16: non-coherent candidates pay `dist * (1 + bias/16)`.
     pub coherence: u32,
-    /// Element offsets of this level in the shared buffers.
+    /// Element offset of this level's `Et` and `qe` tables in the shared buffers.
     pub et_base: u32,
+    /// Offset of this level's similarity offsets.
     pub off_base: u32,
+    /// Offset of this level's projection blocks.
     pub proj_base: u32,
+    /// Offset of this level's coordinates in the coordinate array.
     pub coord_base: u32,
+    /// Offset of the parent level's coordinates.
     pub parent_coord_base: u32,
-    /// Output window inside this level's region (gather pass).
+    /// Offset of the output window inside this level's region (gather pass).
     pub window_offset: [i32; 2],
+    /// Output window size in pixels.
     pub window_size: [i32; 2],
     /// 1: full 32D distance, 0: projected 8D distance (see `correct.rs`).
     pub full_distance: u32,
@@ -61,16 +70,19 @@ pub struct PassParams {
     /// field): 1 with green = y down the image (DirectX), 2 with green = y up (OpenGL,
     /// glTF).
     pub map_kind: u32,
-    /// Magnify pass only: size of the high-resolution exemplar, and the factor.
+    /// Magnify pass only: size of the high-resolution exemplar.
     pub hi_size: [i32; 2],
+    /// Magnification factor.
     pub magnify: u32,
     /// Atlas synthesis: 1 if the correction skips texels outside the charts (their
     /// mask bits start at word `mask_base` of the surface buffer), 0 otherwise.
     pub masked: u32,
+    /// Word offset of this level's chart mask in the surface buffer.
     pub mask_base: u32,
     /// Fill pass: this level's indirection entries, `fill_count` of them from word
     /// `fill_base` of the surface buffer (4 words each, see `fill.rs`).
     pub fill_base: u32,
+    /// Indirection entries this fill dispatch processes.
     pub fill_count: u32,
     /// Advection: index in the coordinate buffer of the per-pixel distortion flags
     /// (the upsample then only rewrites flagged pixels); 0 = upsample every pixel.
@@ -112,6 +124,7 @@ pub struct PassParams {
     /// subpass, which left it unchanged, so it is skipped (0: none is). See
     /// `SynthPlan::schedule_with`.
     pub stamp: u32,
+    /// Pixels whose stamp is below this are skipped (see `stamp`).
     pub clean_before: u32,
     /// Anisometric correction (advection frames): 1 leaves a pixel whose 8 neighbours
     /// all continue its patch within a quarter pixel (see `correct_aniso.rs`).
@@ -128,8 +141,11 @@ pub struct PassParams {
     /// where it writes the new one, the frames a fade lasts, and the exemplar's mean
     /// colour (RGBA8, packed) the blend keeps the contrast around.
     pub fade_src: u32,
+    /// Where the fade pass writes the new fade state.
     pub fade_dst: u32,
+    /// Frames a fade lasts.
     pub fade_frames: u32,
+    /// The exemplar's mean colour (RGBA8, packed) the fade's blend is centred on.
     pub fade_mean: u32,
     /// The fade's pop test: how much a jump must change a pixel's colour, of 255
     /// ([`crate::passes::advect::AdvectOptions::fade_change`]).
@@ -171,14 +187,15 @@ pub fn hash_pixel(p: [i32; 2], level: u32, seed: u32) -> [u32; 2] {
     [hx, hy]
 }
 
+/// `c` modulo `n`, in `[0, n)`.
 #[inline]
 pub fn wrap(c: i32, n: i32) -> i32 {
     ((c % n) + n) % n
 }
 
 /// `wrap` for `c` in `[-2n, 3n)`, without a division: integer division is by far the
-/// most expensive operation on CPU implementations of Vulkan (lavapipe scalarizes it),
-/// and the correction wraps ~30 coordinates per pixel. Its callers stay in range: a
+/// most expensive operation on CPU implementations of Vulkan, and the correction wraps
+/// about 30 coordinates per pixel. Its callers stay in range: a
 /// coordinate in `[0, n)`, an offset of at most `n/2`, and a step below `n`.
 #[inline]
 pub fn wrap_near(c: i32, n: i32) -> i32 {

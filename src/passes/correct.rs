@@ -27,9 +27,13 @@ use crate::analysis::{DIAGONALS, DIM, QE_MAX};
 
 /// The per-level tables a correction pass reads.
 pub struct LevelTables<'a> {
+    /// Appearance vectors `Et` of the level.
     pub et: &'a [[i16; DIM]],
+    /// Projected appearance vectors `qe` of the level.
     pub qe: &'a [[i16; DIM]],
+    /// Similarity offsets, `k - 1` per exemplar pixel.
     pub offsets: &'a [[i16; 2]],
+    /// Quantized projection blocks of the runtime neighbourhood.
     pub proj: &'a [[i16; 4 * DIM]; DIM],
 }
 

@@ -1,5 +1,5 @@
-//! Mirror of `shaders/correct_aniso.wgsl`: one anisometric correction subpass (paper
-//! section 5). Coordinates are continuous (1/256 exemplar pixel), `J(p)` comes per pixel
+//! Mirror of `shaders/correct_aniso.wgsl`: one anisometric correction subpass
+//! (Lefebvre & Hoppe 2006 §5). Coordinates are continuous (1/256 exemplar pixel), `J(p)` comes per pixel
 //! from the field.
 //!
 //! Neighbourhood: for each diagonal `D` and `D' in {D, (D.x,0), (0,D.y)}`, the pixel
@@ -8,13 +8,13 @@
 //! weights) where the projected distance scores (finest level), at the nearest texel
 //! where the full distance does (coarse levels: `Et` is smooth at the pixel scale there,
 //! the candidates are scored at their nearest texel too, and the four bilinear reads
-//! cost 20-25% of those levels' time). Summed as in the isometric pass (`3 N_S(p;D)`).
+//! would cost a fifth of those levels' time). Summed as in the isometric pass (`3 N_S(p;D)`).
 //!
 //! Candidates: `S[p+d] + O_i(S[p+d]) - h J d` for the 3x3 block and `i = 1..k`, the
 //! similarity offsets taken at the exemplar pixel nearest to `S[p+d]`. The projected
 //! distance (finest level by default) compares with `qe` bilinearly interpolated at the
-//! coherent candidates (`i = 0`; nearest-pixel scoring of every candidate was measured to
-//! misregister fine detail by up to half a pixel and to break coherent patches) and at
+//! coherent candidates (`i = 0`; nearest-pixel scoring of every candidate misregisters
+//! fine detail by up to half a pixel and breaks coherent patches) and at
 //! the nearest texel for the similarity-set ones (fewer seams, same energy); the full
 //! distance (coarse levels, smooth at
 //! their scale) reads `Et` at the four diagonals of the candidate's nearest pixel. Same tie rule and
@@ -23,10 +23,9 @@
 //!
 //! `p.quarter` (advection frames) rounds every interpolated read to its nearest quarter
 //! pixel, so the GPU can read the finest level's `Et` and `qe` from tables supersampled
-//! at quarter pixels ([`quarter_table`]): one read instead of four, a quarter less of
-//! the finest level's correction time on lavapipe. Advection measured figures a few
-//! percent either way with it; a synthesis along a swirl lost 1-4 points of Jacobian
-//! fidelity, so synthesis keeps the exact positions.
+//! at quarter pixels ([`quarter_table`]): one read instead of four. Advection frames
+//! look the same with it; a synthesis along a swirl loses Jacobian fidelity, so
+//! synthesis keeps the exact positions.
 //!
 //! `p.coherent_skip` (advection frames) leaves a pixel whose 8 neighbours all continue
 //! its patch (`S[q + d] = S[q] + h J d` within [`COHERENT_TOL`] per axis): its own
@@ -201,8 +200,8 @@ pub fn correct_pixel(
     let ns = if full { [0; DIM] } else { project(p, t, &sums) };
     // `interpolate`: the coherent candidates are scored with `qe` interpolated at their
     // sub-pixel position; the similarity-set ones (jumps elsewhere in the exemplar, of
-    // arbitrary sub-pixel phase) at their nearest texel, which measured fewer seams at
-    // the same texture energy.
+    // arbitrary sub-pixel phase) at their nearest texel, which gives fewer seams at the
+    // same texture energy.
     let distance = |c: [i32; 2], interpolate: bool| {
         if full {
             full_distance(p, t, &sums, nearest_texel(c, p))

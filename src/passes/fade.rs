@@ -18,20 +18,13 @@
 //! mean) + w (g - mean)) / sqrt(a^2 + w^2)` with `a = N + 2 - w`, around the exemplar's
 //! mean colour (a linear blend of two unrelated patches is flat halfway through). The
 //! new content leads by one step (`N + 2`, not `N + 1`): a one-frame fade shows the ghost
-//! at 1 against 2, not halfway, which trades better (gravel, 1-frame fades: 0.21% of the
-//! blocks popping at x1.19 of frame 0's energy at its threshold of 45, against 0.47% at
-//! x1.19 halfway at 60).
+//! at 1 against 2, not halfway, which pops less for the same texture energy.
 //!
-//! The pop test (fifty-third session) is the mean change over the pixel's 3x3
-//! neighbourhood within its [`TILE`]x[`TILE`] tile (the pass's workgroup, whose
-//! invocations share their changes through workgroup memory; pixels that did not jump
-//! count 0): an isolated speck that changed is no pop, a patch that changed is. It trades
-//! better than the pixel's own change, which the fifty-first session tested (gravel,
-//! 1-frame fades blended halfway: 0.47% of the 8x8 blocks popping per frame at x1.18
-//! of frame 0's texture energy, against 0.61% at x1.20), for 2-3 ms more of a 512x512
-//! frame on lavapipe. A neighbourhood across tiles needed a pass of its own (29 ms
-//! against 13): on lavapipe a pass costs about its memory accesses whether or not a
-//! pixel takes the branch that holds them.
+//! The pop test is the mean change over the pixel's 3x3 neighbourhood within its
+//! [`TILE`]x[`TILE`] tile (the pass's workgroup, whose invocations share their changes
+//! through workgroup memory; pixels that did not jump count 0): an isolated speck that
+//! changed is no pop, a patch that changed is. It pops less than testing the pixel's own
+//! change; a neighbourhood across tiles would need a pass of its own, which costs more.
 
 use super::advect::{offset, velocity_at, whole_shift};
 use super::common::{fit_coord, wrap, PassParams};
@@ -46,12 +39,6 @@ pub const FADE_JUMP: i32 = 384;
 /// ([`popped`]) changed the colour by more than this on average (of 255;
 /// `(|dR| + 2 |dG| + |dB|) / 4`). Most jumps are not pops: seams that moved, patches
 /// remade alike.
-/// Measured (fifty-third session; gravel, 256x256, 300 frames of the default vortex,
-/// `keep_look`, 1-frame fades; texture energy over frame 0's, mean over frames 10-300, and
-/// the 8x8 blocks changing by 0.15 of full scale per frame): 40 x1.20 and 0.13%, 45 x1.19
-/// and 0.21%, 50 x1.17 and 0.38%, 55 x1.16 and 0.59% (none: x1.13 and 1.58%). With
-/// `keep_look`'s similarity sets on every fourth correction (fifty-fourth session): 35
-/// x1.20 and 0.08%, 40 x1.18 and 0.12%, 45 x1.17 and 0.20% (none: x1.12 and 1.41%).
 pub const FADE_CHANGE: u32 = 45;
 
 /// Entries of fade state per pixel of the finest level's region.

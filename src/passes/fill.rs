@@ -2,7 +2,7 @@
 //! the anisometric passes on a texture atlas, where texels outside the charts are not
 //! corrected and, after every pass, the gutter texels around each chart are refilled
 //! through the indirection map with the coordinates of the same surface point in the
-//! neighbouring chart (paper section 6). Correcting a texel near a chart edge then reads,
+//! neighbouring chart (Lefebvre & Hoppe 2006 §6). Correcting a texel near a chart edge then reads,
 //! at its immediate neighbours, the texture across the seam.
 //!
 //! Filling the gutter once per pass and reading it like any texel is the same as
@@ -28,14 +28,18 @@ pub const FILL_OFFSET_MAX: i32 = 2 << FILL_OFFSET_FRAC;
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct FillEntry {
+    /// Gutter texel to fill (region index).
     pub dst: u32,
+    /// Chart texel it copies (region index).
     pub src: u32,
+    /// Surface point relative to `src`'s centre, level texels in 1/16.
     pub off: [i32; 2],
 }
 
 /// One level of an atlas domain.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct AtlasLevel {
+    /// Size of this level of the atlas in texels.
     pub size: [u32; 2],
     /// Quantized Jacobian per texel (see `field::JAC_FRAC`), gutter texels included.
     pub jac: Vec<[i32; 4]>,
@@ -46,10 +50,12 @@ pub struct AtlasLevel {
     /// the gutter (filled once per level, for the finer level's upsampling and so that
     /// the final colours are dilated into the whole gutter).
     pub fill: Vec<FillEntry>,
+    /// Entries at the start of `fill` that form the band next to the charts.
     pub band: u32,
 }
 
 impl AtlasLevel {
+    /// Whether texel `t` is inside a chart.
     pub fn is_inside(&self, t: usize) -> bool {
         (self.inside[t >> 5] >> (t & 31)) & 1 != 0
     }
@@ -60,16 +66,20 @@ impl AtlasLevel {
 /// itself), each next one half the size (rounded up).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct AtlasDomain {
+    /// The levels, finest first.
     pub levels: Vec<AtlasLevel>,
 }
 
 /// Where each plan level's mask and entries lie in the surface buffer.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct SurfaceLayout {
+    /// Word offset of the level's chart mask.
     pub mask_base: u32,
+    /// Word offset of the level's indirection entries.
     pub fill_base: u32,
-    /// Entries of the band, and of the whole gutter.
+    /// Entries of the band.
     pub band_count: u32,
+    /// Entries of the whole gutter.
     pub fill_count: u32,
 }
 
@@ -113,6 +123,7 @@ pub fn scaled_jd_frac(h: i32, j: [i32; 4], off: [i32; 2]) -> [i32; 2] {
     [(h * x + 2) >> 2, (h * y + 2) >> 2]
 }
 
+/// Refills the dispatch's gutter texels through their indirection entries (`fill.wgsl`).
 pub fn run(p: &PassParams, coords: &mut [[i32; 2]], jac: &[[i32; 4]], surface: &[u32]) {
     let base = p.coord_base as usize;
     for e in 0..p.fill_count as usize {

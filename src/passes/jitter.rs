@@ -6,6 +6,8 @@
 
 use super::common::{fit_coord, hash_pixel, PassParams};
 
+/// The jitter of absolute pixel `abs` at `level` (amplitude `amp` in 1/16 pixel): the
+/// hashed offset, rounded.
 #[inline]
 pub fn jitter_offset(abs: [i32; 2], level: u32, seed: u32, amp: i32) -> [i32; 2] {
     let h = hash_pixel(abs, level, seed);
@@ -16,6 +18,7 @@ pub fn jitter_offset(abs: [i32; 2], level: u32, seed: u32, amp: i32) -> [i32; 2]
     ]
 }
 
+/// Jitters the level's coordinates (`jitter.wgsl`); nothing when the amplitude is 0.
 pub fn run(p: &PassParams, coords: &mut [[i32; 2]]) {
     if p.jitter_amp == 0 {
         return;

@@ -1,4 +1,4 @@
-//! Mirror of `shaders/magnify.wgsl`: magnification (paper sections 5-6). The window is
+//! Mirror of `shaders/magnify.wgsl`: magnification (Lefebvre & Hoppe 2006 §5-6). The window is
 //! rendered at `F` times its synthesized resolution from a higher-resolution exemplar
 //! `E_H` (`F` times the analysed one): output pixel `o` sits at `x = (o + 1/2)/F - 1/2`
 //! in synthesized pixels and blends, with bilinear weights, the predictions

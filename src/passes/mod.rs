@@ -6,6 +6,8 @@ pub mod advect;
 pub mod common;
 pub mod correct;
 pub mod correct_aniso;
+pub mod distortion;
+pub mod drift;
 pub mod fade;
 pub mod fill;
 pub mod gather;
@@ -17,6 +19,8 @@ pub mod plan;
 pub mod resample;
 pub mod upsample;
 pub mod upsample_aniso;
+pub mod velocity;
+pub mod velocity_texture;
 
 pub use plan::{DistanceMode, LevelPlan, PassKind, SynthParams, SynthPlan};
 
@@ -27,10 +31,13 @@ use plan::Dispatch;
 /// A synthesized window: exemplar coordinates and RGBA8 colours, row-major.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Synthesis {
+    /// Window width in pixels.
     pub width: u32,
+    /// Window height in pixels.
     pub height: u32,
     /// Exemplar coordinates in units of `2^-coord_frac` exemplar pixels.
     pub coords: Vec<[i32; 2]>,
+    /// RGBA8 colours.
     pub colors: Vec<[u8; 4]>,
     /// 0 for isometric synthesis (integer pixels), [`common::COORD_FRAC`] for
     /// anisometric synthesis (continuous coordinates).
@@ -133,11 +140,11 @@ pub fn run_cpu_frame(
                 None
             }
             PassKind::Drift => {
-                advect::drift(&d.params, coords, velocity);
+                drift::drift(&d.params, coords, velocity);
                 None
             }
             PassKind::Distortion => {
-                advect::distortion(&d.params, coords, jac, surface);
+                distortion::distortion(&d.params, coords, jac, surface);
                 None
             }
             PassKind::Resample => {

@@ -21,6 +21,7 @@ pub fn upsample_pixel(p: &PassParams, coords: &[[i32; 2]], abs: [i32; 2]) -> [i3
     )
 }
 
+/// Upsamples the coarser level's coordinates into this level's region (`upsample.wgsl`).
 pub fn run(p: &PassParams, coords: &mut [[i32; 2]]) {
     for y in 0..p.size[1] {
         for x in 0..p.size[0] {

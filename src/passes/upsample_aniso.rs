@@ -4,6 +4,8 @@
 
 use super::common::{coord_delta, fit_coord, same_patch, scaled_jd, PassParams};
 
+/// The anisometric upsampling of region pixel `q` from the coarser level
+/// (`upsample_aniso.wgsl`); the distortion pass's renewals use it too.
 pub fn upsample_pixel(
     p: &PassParams,
     coords: &[[i32; 2]],
