@@ -6,19 +6,8 @@ use super::Advection;
 use crate::error::{Error, Result};
 use crate::gpu::shaders;
 use crate::gpu::GpuContext;
-use crate::passes::advect::{MAX_SPEED, VELOCITY_FRAC};
 
-/// Host-side quantization of one velocity, as `shaders/velocity.wgsl` does on the GPU:
-/// scaled by `dt`, clamped to [`MAX_SPEED`] per component, a non-finite component 0.
-pub fn quantize_velocity(v: [f32; 2], dt: f32) -> [i32; 2] {
-    let s = (1u32 << VELOCITY_FRAC) as f32;
-    v.map(|c| {
-        if !c.is_finite() {
-            return 0;
-        }
-        ((c * dt).clamp(-MAX_SPEED, MAX_SPEED) * s).round_ties_even() as i32
-    })
-}
+pub use crate::passes::velocity::quantize_velocity;
 
 impl Advection {
     pub(super) fn check_dt(dt: f32) -> Result<()> {
