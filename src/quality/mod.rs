@@ -1,7 +1,7 @@
 //! Quality figures for synthesized textures, used by `texsyn eval` and the tests.
 //!
-//! Each figure answers one question about an output; lower is better unless said
-//! otherwise.
+//! Each figure answers one question about an output. Most are distances or shares of
+//! defects, where lower is better; each function's documentation says how to read it.
 //!
 //! * [`texture_energy`] (`energy`): are the output's neighbourhoods the exemplar's?
 //!   The mean squared per-channel difference of each output window to its nearest

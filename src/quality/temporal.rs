@@ -11,7 +11,7 @@ use super::energy::texture_energy;
 use super::image::FloatImage;
 use crate::error::Result;
 
-/// Temporal coherence of an advected sequence (`texsyn advect`, `texsyn eval --frames`).
+/// Temporal coherence of an advected sequence (`texsyn advect`, `texsyn eval --flow`).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct TemporalReport {
     /// Per consecutive pair: mean absolute difference (0-1) between frame t and frame

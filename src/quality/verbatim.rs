@@ -3,9 +3,9 @@
 //!
 //! Neighbouring output pixels whose exemplar coordinates differ by the same step as
 //! their positions are coherent; the coherent regions are the connected pieces copied
-//! verbatim. A high coherent fraction with small regions is healthy patch-based
-//! synthesis; a largest region near the exemplar's size (fraction near 1) means the
-//! exemplar was copied wholesale.
+//! verbatim. Coherent synthesis builds its output from such pieces, so a high coherent
+//! fraction is expected; the largest region says how large they get, and a fraction
+//! near 1 (a region the exemplar's size) means the exemplar was copied wholesale.
 
 use super::common::invalid;
 use crate::error::Result;
@@ -85,10 +85,11 @@ pub fn verbatim_stats(
 }
 
 /// [`verbatim_stats`] of a coarser synthesis level, whose pixels step `spacing`
-/// exemplar pixels (`h_l`): a pair `(p, p + e)` is coherent when `coords[p + e] ==
-/// coords[p] + spacing * e`, and each pixel counts as `spacing^2` exemplar pixels in
-/// `largest_region_fraction` (`largest_region_pixels` stays in this level's pixels).
-/// When the finer levels only upsample, their regions are these regions, enlarged.
+/// exemplar pixels (the level spacing `h_l` of Lefebvre & Hoppe 2006): a pair
+/// `(p, p + e)` is coherent when `coords[p + e] == coords[p] + spacing * e`, and each
+/// pixel counts as `spacing^2` exemplar pixels in `largest_region_fraction`
+/// (`largest_region_pixels` stays in this level's pixels). When the finer levels only
+/// upsample, their regions are these regions, enlarged.
 pub fn verbatim_stats_at_spacing(
     coords: &[[i32; 2]],
     out_w: u32,
