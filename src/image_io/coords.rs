@@ -103,9 +103,10 @@ pub fn load_coords_exr_f32(path: &Path) -> Result<(u32, u32, Vec<[f32; 2]>)> {
 }
 
 /// Reads a coordinate map written by [`save_coords_exr_atomic`] (any float RGB/RGBA image
-/// the `image` crate reads, or a 2-channel float EXR, see [`open_image`]): returns `(width, height, coords)` with R and G rounded to the
-/// nearest integer. Non-float images and non-finite or out-of-range values are
-/// [`Error::BadImage`].
+/// the `image` crate reads, or a 2-channel float EXR, see
+/// [`open_image`](super::open_image)): returns `(width, height, coords)` with R and G
+/// rounded to the nearest integer. Non-float images and non-finite or out-of-range values
+/// are [`Error::BadImage`].
 pub fn load_coords_exr(path: &Path) -> Result<(u32, u32, Vec<[i32; 2]>)> {
     let img = decode_image(path)?;
     let bad = |reason: String| Error::BadImage {

@@ -7,11 +7,12 @@ use image::DynamicImage;
 
 use super::read::open_regular;
 
-/// A 1- or 2-channel OpenEXR read with the `exr` crate (see [`open_image`]).
+/// A 1- or 2-channel OpenEXR read with the `exr` crate (see [`open_image`](super::open_image)).
 pub(super) struct FewChannelExr {
     pub(super) width: u32,
     pub(super) height: u32,
-    /// The channel names, in the order of `data` (see [`open_image`] for the rule).
+    /// The channel names, in the order of `data` (see [`open_image`](super::open_image) for
+    /// the rule).
     pub(super) names: Vec<String>,
     /// 2 channels, the second of which is alpha.
     pub(super) alpha: bool,
@@ -76,7 +77,8 @@ pub(super) fn exr_channel_names(path: &Path) -> Option<Vec<String>> {
     .ok()
 }
 
-/// Reads a 1- or 2-channel EXR (see [`open_image`]); errors are the reason, in words.
+/// Reads a 1- or 2-channel EXR (see [`open_image`](super::open_image)); errors are the
+/// reason, in words.
 pub(super) fn read_few_channel_exr(path: &Path) -> std::result::Result<FewChannelExr, String> {
     use exr::prelude::traits::*;
     let exr_err = |e: exr::error::Error| match e {

@@ -7,11 +7,11 @@ use super::exemplar::{f32_to_unit, grey8};
 use crate::error::Result;
 
 /// A material map (`--also`): its size, its channel count as stored (1 grey, 2 grey +
-/// alpha, 3 RGB, 4 RGBA) and its pixels as RGBA8 (grey replicated into RGB; alpha kept,
-/// 255 where there is none). Unlike [`load_exemplar`], alpha is data here (opacity,
-/// packed roughness...), so it is resynthesized and written back. A 1-channel OpenEXR is
-/// grey, a 2-channel one with an alpha (`A`) channel grey + alpha, any other 2-channel one
-/// RGB with the two channels in R and G and B = 0 (floats clamped to [0, 1]).
+/// alpha, 3 RGB, 4 RGBA) and its pixels as RGBA8 (grey replicated into RGB; alpha kept, 255
+/// where there is none). Unlike [`load_exemplar`](super::load_exemplar), alpha is data here
+/// (opacity, packed roughness...), so it is resynthesized and written back. A 1-channel
+/// OpenEXR is grey, a 2-channel one with an alpha (`A`) channel grey + alpha, any other
+/// 2-channel one RGB with the two channels in R and G and B = 0 (floats clamped to [0, 1]).
 pub fn load_material_map(path: &Path) -> Result<(u32, u32, u32, Vec<[u8; 4]>)> {
     let img = match decode_any(path)? {
         Decoded::Image(img) => {

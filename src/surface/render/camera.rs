@@ -27,9 +27,9 @@ pub(super) fn bounding_sphere(mesh: &Mesh) -> (Vec3, f32) {
     )
 }
 
-/// The cameras [`render_views`] uses: `views` cameras orbiting the mesh (see the module
-/// documentation), all at the same distance from the centre of its bounding box: the
-/// smallest at which every vertex is inside every view, plus a 5% margin.
+/// The cameras [`render_views`](super::render_views) uses: `views` cameras orbiting the
+/// mesh (see the module documentation), all at the same distance from the centre of its
+/// bounding box: the smallest at which every vertex is inside every view, plus a 5% margin.
 pub fn orbit_cameras(mesh: &Mesh, views: u32) -> Vec<Camera> {
     let (centre, radius) = bounding_sphere(mesh);
     let tan = (ORBIT_FOV_DEG * 0.5).to_radians().tan() / 1.05;

@@ -83,12 +83,15 @@ pub enum SurfaceTexture<'a> {
     /// A colour atlas (RGBA8, row-major, `width * height * 4` bytes), sampled bilinearly
     /// with mipmaps (a box-filtered mip chain built on the CPU; trilinear filtering).
     Color {
+        /// The atlas, `width * height * 4` bytes.
         rgba: &'a [u8],
+        /// Atlas width in texels.
         width: u32,
+        /// Atlas height in texels.
         height: u32,
     },
-    /// Magnification in the fragment shader (paper section 5), from synthesized exemplar
-    /// coordinates over the atlas and a high-resolution exemplar.
+    /// Magnification in the fragment shader (Lefebvre & Hoppe 2006, section 5), from
+    /// synthesized exemplar coordinates over the atlas and a high-resolution exemplar.
     ///
     /// * `coords[j * width + i]`: the synthesized exemplar position S of atlas texel
     ///   (i, j), in pixels of the LOW-resolution exemplar, as a *continuous* position:
@@ -110,13 +113,21 @@ pub enum SurfaceTexture<'a> {
     /// replaced by the edge texel (whose S and J then extrapolate). When the view
     /// minifies the exemplar, the mip level follows the gradient `factor * J[q] * dx`.
     Magnified {
+        /// Synthesized exemplar position of every atlas texel.
         coords: &'a [[f32; 2]],
+        /// d(exemplar) / d(atlas) of every atlas texel.
         jacobian: &'a [[f32; 4]],
+        /// Atlas width in texels.
         width: u32,
+        /// Atlas height in texels.
         height: u32,
+        /// The high-resolution exemplar, `hi_width * hi_height * 4` bytes.
         hi_rgba: &'a [u8],
+        /// High-resolution exemplar width in pixels.
         hi_width: u32,
+        /// High-resolution exemplar height in pixels.
         hi_height: u32,
+        /// High-resolution over low-resolution exemplar width.
         factor: f32,
     },
 }
@@ -124,8 +135,11 @@ pub enum SurfaceTexture<'a> {
 /// A perspective camera.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Camera {
+    /// Position of the camera.
     pub eye: Vec3,
+    /// Point looked at.
     pub target: Vec3,
+    /// Up direction of the image.
     pub up: Vec3,
     /// Vertical field of view in degrees (views are square, so also the horizontal one).
     pub fov_y_deg: f32,

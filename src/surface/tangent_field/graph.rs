@@ -216,7 +216,8 @@ impl Graph {
             .collect()
     }
 
-    /// Singular vertices and their index; see [`TangentField::singularities`].
+    /// Singular vertices and their index; see
+    /// [`TangentField::singularities`](super::TangentField::singularities).
     ///
     /// Per triangle (corners a, b, c counter-clockwise): the turning of the field around
     /// it relative to the transport, `sum wrap(theta_next - theta_cur - rho)` (wrapped to

@@ -1,9 +1,9 @@
 //! Tangent fields: where the exemplar's axes go on the surface, and at what scale.
 //!
-//! Surface synthesis (paper section 6) needs, at every surface point, a tangent frame
-//! `F = [t*s, b*s]`: `t` is the surface direction that the exemplar's +x axis follows,
-//! `b = t x n` the direction of the exemplar's +y axis (image y points down, so with
-//! this choice the texture is not mirrored when seen from outside, from the side the
+//! Surface synthesis (Lefebvre & Hoppe 2006, section 6) needs, at every surface point, a
+//! tangent frame `F = [t*s, b*s]`: `t` is the surface direction that the exemplar's +x axis
+//! follows, `b = t x n` the direction of the exemplar's +y axis (image y points down, so
+//! with this choice the texture is not mirrored when seen from outside, from the side the
 //! normal points to), and `s` the size of one exemplar texel in world units.
 //!
 //! A [`TangentField`] stores one unit tangent and one scale per triangle corner, not per
@@ -12,10 +12,11 @@
 //! inside the triangle is smooth) and a random field can change abruptly between
 //! regions. [`TangentField::frame`] interpolates them at any point of a triangle.
 //!
-//! The direction sources ([`DirectionSource`]) work on the mesh's vertices welded by
-//! exact position (glTF meshes split vertices at uv seams; [`Mesh::cube`] has one set of
-//! vertices per face), with one area-weighted normal per welded vertex, so the field is
-//! continuous across seams and chart boundaries.
+//! The direction sources ([`DirectionSource`]) work on the mesh's vertices welded by exact
+//! position (glTF meshes split vertices at uv seams;
+//! [`Mesh::cube`](crate::surface::mesh::Mesh::cube) has one set of vertices per face), with
+//! one area-weighted normal per welded vertex, so the field is continuous across seams and
+//! chart boundaries.
 
 mod field;
 mod graph;
@@ -41,7 +42,7 @@ pub const CONSTRAINT_ITERATIONS: u32 = 10;
 /// of [`DirectionSource::RandomPerRegion`] when no regions are given.
 pub const REGION_ANGLE_DEGREES: f32 = 30.0;
 
-/// Help for the CLI's direction option (the syntax of [`DirectionSource::from_str`]).
+/// Help for the CLI's direction option (the syntax that [`DirectionSource`] parses).
 pub const DIRECTION_HELP: &str = "\
 where the exemplar's axes go on the surface:
   up                  the exemplar's up (-y) follows world +y projected to the surface (= up:0,1,0);
@@ -58,7 +59,7 @@ where the exemplar's axes go on the surface:
                       (a surface point and a direction, world units; '#' starts a comment),
                       blended with inverse-distance-squared weights and smoothed";
 
-/// Help for the CLI's scale option (the syntax of [`ScaleSource::from_str`]).
+/// Help for the CLI's scale option (the syntax that [`ScaleSource`] parses).
 pub const SCALE_HELP: &str = "\
 world units per exemplar texel:
   S                   the same everywhere (a number > 0)
@@ -94,16 +95,25 @@ pub enum DirectionSource {
     /// half of the iterations the averages keep their magnitude (a power iteration
     /// towards the smoothest field, through which singularities can move and cancel), in
     /// the second half they are renormalized to unit length. Singularities end up where
-    /// the topology forces them (on large meshes this needs many iterations; the cost is
-    /// about 10 ns per vertex and neighbour per iteration).
-    Symmetric { n: u32, up: Vec3, iterations: u32 },
+    /// the topology forces them (on large meshes this needs many iterations).
+    Symmetric {
+        /// Order of the symmetry: 1, 2, 4 or 6.
+        n: u32,
+        /// World up vector of the starting field.
+        up: Vec3,
+        /// Relaxation iterations.
+        iterations: u32,
+    },
     /// Isotropic textures: one random direction per region, from `seed` and the region
     /// id. Regions are the per-triangle ids given to [`TangentField::build`] (chart ids)
     /// or, when none are given, groups grown from the lowest unassigned triangle across
     /// edges to triangles whose normal is within [`REGION_ANGLE_DEGREES`] of the seed
     /// triangle's. The direction lies in the plane of the region's mean normal and is
     /// projected to each triangle.
-    RandomPerRegion { seed: u32 },
+    RandomPerRegion {
+        /// Seed of the random directions.
+        seed: u32,
+    },
 }
 
 /// Size of one exemplar texel on the surface, in world units.
@@ -117,8 +127,11 @@ pub enum ScaleSource {
     /// `at_min` at the low end, `at_max` at the high end (`at_min` everywhere if the
     /// mesh has no extent along `axis`).
     Linear {
+        /// World axis along which the scale varies.
         axis: Vec3,
+        /// Scale at the low end of the mesh's extent.
         at_min: f32,
+        /// Scale at the high end of the mesh's extent.
         at_max: f32,
     },
 }

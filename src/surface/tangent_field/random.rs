@@ -1,4 +1,5 @@
-//! Random per-region directions for isotropic textures ([`DirectionSource::RandomPerRegion`]).
+//! Random per-region directions for isotropic textures
+//! ([`DirectionSource::RandomPerRegion`](super::DirectionSource::RandomPerRegion)).
 
 use std::collections::HashMap;
 use std::f32::consts::TAU;

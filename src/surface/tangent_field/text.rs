@@ -98,7 +98,7 @@ pub fn read_constraints(path: &Path) -> Result<Vec<(Vec3, Vec3)>> {
 impl FromStr for DirectionSource {
     type Err = Error;
 
-    /// The syntax of [`DIRECTION_HELP`]. `constraints:FILE` reads the file.
+    /// The syntax of [`DIRECTION_HELP`](super::DIRECTION_HELP). `constraints:FILE` reads the file.
     fn from_str(s: &str) -> Result<Self> {
         let text = s.trim();
         let fail = |reason: String| {
