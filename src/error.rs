@@ -52,8 +52,8 @@ pub enum Error {
         hint: &'static str,
     },
     /// A parameter or option is out of range or inconsistent (size, seed window, field,
-    /// flow, pass counts, ...); the message names it and the accepted values (it is the
-    /// whole text: no "invalid parameter" prefix, which only repeated what it says).
+    /// flow, pass counts, ...); the message names it and the accepted values (the message is
+    /// the whole text, with no prefix).
     #[error("{0}")]
     InvalidParameter(String),
     /// An analysis file (from `texsyn analyze`) that cannot be decoded: wrong magic or

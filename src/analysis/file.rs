@@ -68,6 +68,32 @@ pub const FORMAT_VERSION: u32 = 4;
 /// Every table starts at a multiple of this many bytes from the start of the file.
 const TABLE_ALIGN: u64 = 16;
 
+/// Whether the file at `path` starts with [`MAGIC`], i.e. is an analysis file rather than
+/// an image (a missing or unreadable file, or one that is not a regular file, is an
+/// error).
+pub fn is_analysis_file(path: &Path) -> Result<bool> {
+    use std::io::Read;
+    let mut f = crate::image_io::open_regular(path).map_err(|source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let mut head = [0u8; 8];
+    let mut n = 0;
+    while n < head.len() {
+        match f.read(&mut head[n..]) {
+            Ok(0) => break,
+            Ok(k) => n += k,
+            Err(source) => {
+                return Err(Error::Io {
+                    path: path.to_path_buf(),
+                    source,
+                })
+            }
+        }
+    }
+    Ok(n == head.len() && head == MAGIC)
+}
+
 /// Zero bytes before a table whose count ends at payload offset `payload_pos`.
 fn table_padding(payload_pos: u64) -> u64 {
     let at = HEADER_LEN as u64 + payload_pos;

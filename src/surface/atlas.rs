@@ -22,12 +22,14 @@ pub enum AtlasSource {
     Generate,
 }
 
+/// How to obtain the atlas: its size, gutter and source.
 #[derive(Clone, Debug, PartialEq)]
 pub struct AtlasOptions {
     /// Atlas side in texels (square).
     pub size: u32,
     /// Free texels required between charts at the finest level.
     pub gutter: u32,
+    /// Keep the mesh's own uvs, generate an atlas, or decide automatically.
     pub source: AtlasSource,
 }
 
@@ -65,14 +67,17 @@ pub fn default_gutter(exact_levels: u32) -> u32 {
 /// A mesh with an atlas parameterization.
 #[derive(Clone, Debug)]
 pub struct Atlas {
+    /// Atlas side in texels (square).
     pub size: u32,
     /// The mesh, vertices split where charts are cut; `uvs` is the atlas.
     pub mesh: Mesh,
     /// Chart index of every triangle.
     pub chart_of_triangle: Vec<u32>,
+    /// Number of charts.
     pub chart_count: u32,
     /// True if xatlas built it; `note` says why the input's was not used.
     pub generated: bool,
+    /// Why the input mesh's own atlas was not kept (empty when it was).
     pub note: String,
     /// For each vertex of `mesh`, the vertex of the mesh the atlas was built from that
     /// it was split from (the identity where the mesh's own atlas is kept): per-vertex

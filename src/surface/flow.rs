@@ -69,11 +69,11 @@ pub fn atlas_velocity_from_mesh_vertices(
 }
 
 /// Atlas velocities of a preset flow at time `t`, interpreted on the surface: `vortex`
-/// turns about the world y axis through the mesh's centre at OMEGA radians per unit
-/// time (with a core radius, a Lamb-Oseen vortex about that axis, the radius a fraction
-/// of the mesh's larger horizontal extent); `uniform:VX,VY` drifts along world x and y, `source` flows away from the centre
-/// (towards it when negative), `gusts` drifts in the xz plane turning with time; speeds
-/// are in exemplar texels per unit time. Image flows are 2D only.
+/// turns about the world y axis through the mesh's centre at OMEGA radians per unit time
+/// (with a core radius, a Lamb-Oseen vortex about that axis, the radius a fraction of the
+/// mesh's larger horizontal extent); `uniform:VX,VY` drifts along world x and y, `source`
+/// flows away from the centre (towards it when negative), `gusts` drifts in the xz plane
+/// turning with time; speeds are in exemplar texels per unit time. Image flows are 2D only.
 pub fn atlas_velocity(prepared: &PreparedSurface, flow: &Flow, t: f32) -> Result<Vec<[f32; 2]>> {
     let mesh = &prepared.atlas.mesh;
     let (lo, hi) = mesh.bounding_box();

@@ -1,4 +1,4 @@
-//! Host-side maps of atlas synthesis, per pyramid level (ALGORITHM.md, Surfaces):
+//! Host-side maps of atlas synthesis, per pyramid level:
 //! - the chart mask (texel centre inside a triangle at that level's resolution);
 //! - the desired Jacobian `J = pinv(F) Jf` per texel, `Jf` the triangle's 3x2
 //!   d(surface)/d(atlas texel) and `F = [t s, b s]` the tangent frame;

@@ -11,6 +11,7 @@ use crate::error::{Error, Result};
 /// A triangle mesh in world space.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Mesh {
+    /// Vertex positions.
     pub positions: Vec<Vec3>,
     /// Unit vertex normals (computed, area-weighted, when the source has none).
     pub normals: Vec<Vec3>,
@@ -18,6 +19,7 @@ pub struct Mesh {
     pub uvs: Option<Vec<Vec2>>,
     /// glTF `TANGENT`: xyz unit tangent, w = +-1 bitangent sign.
     pub tangents: Option<Vec<Vec4>>,
+    /// Vertex indices of every triangle.
     pub triangles: Vec<[u32; 3]>,
 }
 
@@ -38,6 +40,7 @@ impl Mesh {
         0.5 * (b - a).cross(c - a).length()
     }
 
+    /// Total surface area in world units squared.
     pub fn surface_area(&self) -> f64 {
         (0..self.triangles.len())
             .map(|t| self.triangle_area(t) as f64)

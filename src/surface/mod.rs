@@ -1,4 +1,4 @@
-//! Surface texture synthesis in a texture atlas (paper section 6): mesh in, atlas,
+//! Surface texture synthesis in a texture atlas (Lefebvre & Hoppe 2006, section 6): mesh in, atlas,
 //! tangent field, per-level Jacobian and indirection maps on the host, anisometric
 //! synthesis in the atlas on the GPU, textured glTF out.
 

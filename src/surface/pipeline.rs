@@ -18,6 +18,7 @@ use crate::passes::{SynthParams, Synthesis};
 /// How to lay the texture on the surface.
 #[derive(Clone, Debug)]
 pub struct SurfaceOptions {
+    /// Atlas size, gutter and source.
     pub atlas: AtlasOptions,
     /// Which surface direction the exemplar's x axis follows.
     pub direction: DirectionSource,
@@ -40,20 +41,29 @@ impl Default for SurfaceOptions {
 /// syntheses with the same exemplar pyramid depth).
 #[derive(Clone, Debug)]
 pub struct PreparedSurface {
+    /// The mesh with its atlas.
     pub atlas: Atlas,
+    /// The tangent field on the atlas mesh.
     pub field: TangentField,
+    /// Per-level chart masks, Jacobians and indirection maps for synthesis.
     pub domain: Arc<AtlasDomain>,
+    /// What building the maps found.
     pub report: MapsReport,
     /// World units per exemplar texel where it is constant (the automatic choice or a
     /// constant given), else None.
     pub texel_size: Option<f32>,
+    /// Time spent on each preparation step.
     pub timings: PrepareTimings,
 }
 
+/// Wall-clock time of each step of [`prepare`].
 #[derive(Clone, Copy, Debug, Default)]
 pub struct PrepareTimings {
+    /// Obtaining the atlas.
     pub atlas: Duration,
+    /// Building the tangent field.
     pub field: Duration,
+    /// Building the per-level maps.
     pub maps: Duration,
 }
 

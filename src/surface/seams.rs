@@ -8,6 +8,7 @@ use glam::Vec2;
 
 use super::atlas::{rasterize, Atlas, NONE};
 
+/// How visible chart seams are in a synthesized atlas ([`seam_report`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct SeamReport {
     /// Mean absolute RGB difference (0-255) across seams, at the same surface points.
@@ -17,7 +18,9 @@ pub struct SeamReport {
     pub interior: f64,
     /// `seam / interior`: 1 means a seam is as visible as any step between texels.
     pub ratio: f64,
+    /// Mesh edges cut by the atlas (different charts or different uvs on the two sides).
     pub seam_edges: usize,
+    /// Points sampled along those edges (every half texel).
     pub samples: usize,
 }
 
