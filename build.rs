@@ -636,6 +636,13 @@ const SHARED_STRUCTS: &[SharedStruct] = &[
         wgsl_file: "shared/common.wgsl",
         wgsl: "Params",
     },
+    // The velocity quantization's uniform block (advection).
+    SharedStruct {
+        rust_file: "src/passes/velocity.rs",
+        rust: "VelocityParams",
+        wgsl_file: "shared/velocity.wgsl",
+        wgsl: "VelocityParams",
+    },
     // The mesh renderer's uniform blocks.
     SharedStruct {
         rust_file: "src/surface/render.rs",

@@ -18,3 +18,18 @@ pub fn quantize_velocity(v: [f32; 2], dt: f32) -> [i32; 2] {
         ((c * dt).clamp(-MAX_SPEED, MAX_SPEED) * s).round_ties_even() as i32
     })
 }
+
+/// The uniform block of `velocity.wgsl` and `velocity_texture.wgsl` (`VelocityParams` in
+/// `shaders/shared/velocity.wgsl`; build.rs checks the two layouts agree).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct VelocityParams {
+    /// Velocities to quantize (the output's pixels).
+    pub count: u32,
+    /// Time step the velocities are scaled by.
+    pub dt: f32,
+    /// The output's width: the texture pixel of entry `i` is `(i % width, i / width)`.
+    pub width: u32,
+    /// Padding to 16 bytes.
+    pub _pad: u32,
+}

@@ -223,15 +223,17 @@ impl Advection {
     ) -> Result<()> {
         let n = self.params.width as u64 * self.params.height as u64;
         let group = ctx.scoped(|| {
-            let mut uniform = [0u8; 16];
-            uniform[..4].copy_from_slice(&(n as u32).to_le_bytes());
-            uniform[4..8].copy_from_slice(&dt.to_le_bytes());
-            uniform[8..12].copy_from_slice(&self.params.width.to_le_bytes());
+            let uniform = crate::passes::velocity::VelocityParams {
+                count: n as u32,
+                dt,
+                width: self.params.width,
+                _pad: 0,
+            };
             let params = crate::gpu::buffer_init(
                 &ctx.device,
                 &wgpu::util::BufferInitDescriptor {
                     label: Some("texsyn velocity params"),
-                    contents: &uniform,
+                    contents: bytemuck::bytes_of(&uniform),
                     usage: wgpu::BufferUsages::UNIFORM,
                 },
             );
