@@ -2,6 +2,7 @@
 //! fifteenth session's API audit): each is a clear `texsyn::Error`, never a panic.
 
 mod common;
+use common::ctx;
 
 use std::sync::{Arc, OnceLock};
 
@@ -13,10 +14,6 @@ use texsyn::quality::{FloatImage, TemporalFigures};
 use texsyn::surface::mesh::Mesh;
 use texsyn::{Field, Flow, SynthParams};
 
-fn ctx() -> &'static GpuContext {
-    static CTX: OnceLock<GpuContext> = OnceLock::new();
-    CTX.get_or_init(|| GpuContext::headless().expect("a Vulkan adapter (lavapipe)"))
-}
 
 fn analysis() -> Arc<Analysis> {
     static A: OnceLock<Arc<Analysis>> = OnceLock::new();

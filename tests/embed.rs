@@ -2,13 +2,12 @@
 //! output sampled as sRGB, advection from a session, and misuse that must fail cleanly
 //! without spoiling the caller's command encoder.
 
+mod common;
+
 use texsyn::{AdvectOptions, Error, Exemplar, Session};
 
 fn gravel() -> Exemplar {
-    texsyn::image_io::load_exemplar(
-        concat!(env!("CARGO_MANIFEST_DIR"), "/assets/gravel.png").as_ref(),
-    )
-    .expect("assets/gravel.png")
+    common::gravel()
 }
 
 /// The top-left 48x48 pixels of the gravel exemplar as an RGBA8 buffer.

@@ -3,7 +3,7 @@
 
 use std::process::Command;
 
-use crate::common::cli::{texsyn, text, BIN, GRAVEL};
+use crate::common::cli::{command, texsyn, text, GRAVEL};
 use crate::common::TempDir;
 
 /// A reader that goes away (`texsyn ... 2>&1 | head -1`) loses the messages, not the
@@ -15,9 +15,8 @@ fn a_closed_stderr_does_not_stop_the_run() {
     // The pipe's read end is closed before the child writes anything.
     let (reader, writer) = std::io::pipe().unwrap();
     drop(reader);
-    let status = Command::new(BIN)
+    let status = command(dir.root())
         .args(["analyze", GRAVEL, "-o", "a.tsa"])
-        .current_dir(&dir.0)
         .stdout(Stdio::null())
         .stderr(writer)
         .status()
@@ -35,13 +34,12 @@ fn an_interrupted_run_removes_its_unfinished_outputs() {
     for (signal, code) in [("INT", 130), ("TERM", 143)] {
         let dir = TempDir::new("interrupt");
         std::fs::write(dir.path("keep.txt"), b"x").unwrap();
-        let mut child = Command::new(BIN)
+        let mut child = command(dir.root())
             .args([
                 "advect", GRAVEL, "-o", "frames", "--flow", "vortex", "--size", "64", "--frames",
                 "100000", "-q",
             ])
-            .current_dir(&dir.0)
-            .spawn()
+                        .spawn()
             .unwrap();
         // Wait for the staging folder (at most 60 s on a slow machine).
         let start = std::time::Instant::now();
