@@ -228,7 +228,6 @@ fn expect_bad(bytes: &[u8], needles: &[&str], max_alloc: usize) -> String {
     reason
 }
 
-
 // ---- tests ------------------------------------------------------------------------------
 
 #[test]

@@ -13,13 +13,10 @@ use texsyn::gpu::synth::GpuSynthesizer;
 use texsyn::quality::jacobian_fidelity;
 use texsyn::SynthParams;
 
-
 fn gravel() -> Arc<Analysis> {
     static A: OnceLock<Arc<Analysis>> = OnceLock::new();
-    A.get_or_init(|| {
-        Arc::new(common::assets::analysed(&common::gravel()))
-    })
-    .clone()
+    A.get_or_init(|| Arc::new(common::assets::analysed(&common::gravel())))
+        .clone()
 }
 
 fn synth(field: Field, size: u32, origin: [i32; 2]) -> texsyn::Synthesis {

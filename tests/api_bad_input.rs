@@ -1,5 +1,5 @@
-//! The library's public API given inconsistent or extreme values (findings of the
-//! fifteenth session's API audit): each is a clear `texsyn::Error`, never a panic.
+//! The library's public API given inconsistent or extreme values: each is a clear
+//! `texsyn::Error`, never a panic.
 
 mod common;
 use common::ctx;
@@ -13,7 +13,6 @@ use texsyn::gpu::GpuContext;
 use texsyn::quality::{FloatImage, TemporalFigures};
 use texsyn::surface::mesh::Mesh;
 use texsyn::{Field, Flow, SynthParams};
-
 
 fn analysis() -> Arc<Analysis> {
     static A: OnceLock<Arc<Analysis>> = OnceLock::new();

@@ -428,7 +428,7 @@ fn progress_syntheses_are_not_disturbed_by_other_threads_encoding() {
     ctx.take_uncaptured_errors().expect("no wgpu errors");
 }
 
-/// Misuse found by an API audit: a call with another device's context is refused (it
+/// Misuse: a call with another device's context is refused (it
 /// used to spoil the cached pipelines of the synthesizer's own device), a destroyed
 /// velocity buffer fails before anything is recorded, and a destroyed device gives
 /// errors, not panics (wgpu's `create_buffer_init` panics there).

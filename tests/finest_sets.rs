@@ -18,7 +18,6 @@ use texsyn::surface::mesh::Mesh;
 use texsyn::surface::pipeline::{self, SurfaceOptions};
 use texsyn::{Error, SynthParams};
 
-
 /// The full and the lean analysis of a 40x40 crop.
 fn analyses(tileable: bool) -> (Arc<Analysis>, Arc<Analysis>) {
     let ex = common::gravel_crop(40);

@@ -8,7 +8,6 @@ use common::fresh_ctx as context;
 use texsyn::gpu::context::{GpuContext, GpuOptions};
 use texsyn::Error;
 
-
 /// A buffer descriptor wgpu rejects: MAP_READ may only be combined with COPY_DST.
 fn invalid_buffer() -> wgpu::BufferDescriptor<'static> {
     wgpu::BufferDescriptor {

@@ -11,7 +11,6 @@ use texsyn::passes::plan::{PassKind, SynthPlan, SMALL_SECOND_FINEST_PASSES, UNSE
 use texsyn::passes::{run_cpu, synthesize_cpu};
 use texsyn::SynthParams;
 
-
 /// A crop of the bundled exemplar (small, so the tests stay fast).
 fn exemplar(w: u32, h: u32) -> Exemplar {
     common::gravel_crop_rect(w, h)
@@ -560,7 +559,7 @@ fn tileable_output_matches_cpu_and_wraps() {
     // (bundled gravel, 128x96, seeds 1-4): 0.906 across the wrap, 0.942 inside; clamping
     // the two finest levels instead of wrapping them gave 0.500, an output without the
     // option 0. (On the small synthetic exemplar above the wrap measures 0.53-0.61
-    // against 0.80 inside: not understood yet, docs/HISTORY.md.)
+    // against 0.80 inside, not explained yet.)
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/gravel.png");
     let ex = texsyn::image_io::load_exemplar(path.as_ref()).unwrap();
     let a = analyze(&ex, &AnalysisOptions::default(), |_| {}).unwrap();

@@ -12,7 +12,6 @@ use texsyn::image_io::{
 };
 use texsyn::Error;
 
-
 fn save(img: &DynamicImage, path: &Path) {
     img.save(path).unwrap();
 }
@@ -903,7 +902,10 @@ fn several_files_are_written_all_or_nothing() {
     write_files_atomic(&[(&a, b"new"), (&b, b"b")]).unwrap();
     assert_eq!(std::fs::read(&a).unwrap(), b"new");
     assert_eq!(std::fs::read(&b).unwrap(), b"b");
-    assert_eq!(dir.entries(), vec!["a.bin".to_string(), "b.bin".to_string()]);
+    assert_eq!(
+        dir.entries(),
+        vec!["a.bin".to_string(), "b.bin".to_string()]
+    );
 }
 
 /// The JPEG decoder fills a truncated file's missing part with grey without an error, so

@@ -1,7 +1,6 @@
 //! Integration tests of `texsyn::quality`: texture energy, histograms, verbatim-copy
 //! statistics, the report and its JSON form.
 
-
 use texsyn::quality::{
     coarse_energy_any_phase, evaluate, histogram_distance, layout_repetition, multiscale_energy,
     shuffled_baseline, texture_energy, texture_energy_any, texture_energy_exact, verbatim_stats,

@@ -16,7 +16,6 @@ use texsyn::Error;
 
 const BACKGROUND: [u8; 3] = [10, 20, 30];
 
-
 /// A square in the plane z = `z`, centred on the z axis, facing +Z, with glTF uvs
 /// (v down): the top-left corner (-h, +h) has uv `uv0`, the bottom-right one `uv1`.
 fn quad(z: f32, half: f32, uv0: Vec2, uv1: Vec2) -> Mesh {

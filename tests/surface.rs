@@ -13,7 +13,6 @@ use texsyn::surface::pipeline::{self, SurfaceOptions};
 use texsyn::surface::seams::seam_report;
 use texsyn::SynthParams;
 
-
 fn analysis(size: u32) -> Arc<Analysis> {
     type Cache = std::sync::Mutex<Vec<(u32, Arc<Analysis>)>>;
     static CACHE: OnceLock<Cache> = OnceLock::new();

@@ -301,7 +301,6 @@ fn mismatched_masks_and_hdr_exemplars_fail_cleanly() {
         1,
         "tone-map",
     );
-
 }
 
 /// Command lines that cannot run (huge sizes, out-of-range windows, missing maps, `-`

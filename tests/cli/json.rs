@@ -107,9 +107,7 @@ fn value(b: &[u8], i: &mut usize) -> Result<Value, String> {
         }
         Some(_) => {
             let start = *i;
-            while *i < b.len()
-                && matches!(b[*i], b'-' | b'+' | b'.' | b'e' | b'E' | b'0'..=b'9')
-            {
+            while *i < b.len() && matches!(b[*i], b'-' | b'+' | b'.' | b'e' | b'E' | b'0'..=b'9') {
                 *i += 1;
             }
             let t = std::str::from_utf8(&b[start..*i]).unwrap();

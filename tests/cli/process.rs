@@ -39,7 +39,7 @@ fn an_interrupted_run_removes_its_unfinished_outputs() {
                 "advect", GRAVEL, "-o", "frames", "--flow", "vortex", "--size", "64", "--frames",
                 "100000", "-q",
             ])
-                        .spawn()
+            .spawn()
             .unwrap();
         // Wait for the staging folder (at most 60 s on a slow machine).
         let start = std::time::Instant::now();
