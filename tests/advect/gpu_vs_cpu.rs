@@ -384,8 +384,8 @@ fn a_new_seed_between_frames_reaches_the_texture() {
     assert!(later > 0.5 && later >= first, "{first} -> {later}");
 }
 
-/// Synthesis parameters may change between frames, the feature weight too: it lives in the analysis, so a host swaps in the
-/// exemplar analysed with another weight (`Advection::set_synthesizer`). The coordinates
+/// Synthesis parameters may change between frames, the feature weight too: it lives in
+/// the analysis, so a host swaps in the exemplar analysed with another weight (`Advection::set_synthesizer`). The coordinates
 /// carry over, the next frame corrects them against the new analysis (GPU = CPU), and it
 /// changes the result; an analysis of another exemplar size is refused.
 #[test]
