@@ -2,6 +2,9 @@
 //! allocation) for every kind of damaged or crafted file. The `Analysis` is built by hand,
 //! independent of the analysis computation.
 
+mod common;
+use common::TempDir;
+
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 use std::path::{Path, PathBuf};
@@ -192,7 +195,7 @@ fn expect_bad(bytes: &[u8], needles: &[&str], max_alloc: usize) -> String {
     // else, so it may allocate at most the file and its read buffer on top;
     // `load_mapped` reads the file in place, no copy of it.
     let dir = TempDir::new("bad");
-    let path = dir.path().join("bad.tsa");
+    let path = dir.root().join("bad.tsa");
     std::fs::write(&path, bytes).unwrap();
     type Loader = fn(&Path) -> Result<Analysis, Error>;
     // SAFETY: the file is this test's own and stays as it is.
@@ -223,30 +226,6 @@ fn expect_bad(bytes: &[u8], needles: &[&str], max_alloc: usize) -> String {
         );
     }
     reason
-}
-
-struct TempDir(PathBuf);
-impl TempDir {
-    fn new(tag: &str) -> Self {
-        let nanos = std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .unwrap()
-            .as_nanos();
-        let d = std::env::temp_dir().join(format!(
-            "texsyn-test-analysis-{tag}-{}-{nanos}",
-            std::process::id()
-        ));
-        std::fs::create_dir_all(&d).unwrap();
-        TempDir(d)
-    }
-    fn path(&self) -> &Path {
-        &self.0
-    }
-}
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
 }
 
 // ---- tests ------------------------------------------------------------------------------
@@ -317,7 +296,7 @@ fn tables_are_aligned_and_their_padding_checked() {
 #[test]
 fn mapped_load_uses_the_file_in_place() {
     let dir = TempDir::new("mapped");
-    let path = dir.path().join("a.tsa");
+    let path = dir.root().join("a.tsa");
     let a = synthetic(40, 17, 3, false, 12);
     a.save(&path).unwrap();
     // SAFETY: the file is only replaced by `save` (a rename) below, never truncated.
@@ -348,7 +327,7 @@ fn mapped_load_uses_the_file_in_place() {
     assert_eq!(m, a);
     assert_eq!(Analysis::load(&path).unwrap(), b);
     // Empty and missing files: the errors `load` gives.
-    let empty = dir.path().join("empty.tsa");
+    let empty = dir.root().join("empty.tsa");
     std::fs::write(&empty, b"").unwrap();
     // SAFETY: as above.
     match unsafe { Analysis::load_mapped(&empty) } {
@@ -356,7 +335,7 @@ fn mapped_load_uses_the_file_in_place() {
         other => panic!("expected BadAnalysisFile, got {other:?}"),
     }
     // SAFETY: as above.
-    match unsafe { Analysis::load_mapped(&dir.path().join("missing.tsa")) } {
+    match unsafe { Analysis::load_mapped(&dir.root().join("missing.tsa")) } {
         Err(Error::Io { .. }) => {}
         other => panic!("expected Io, got {other:?}"),
     }
@@ -365,7 +344,7 @@ fn mapped_load_uses_the_file_in_place() {
 #[test]
 fn save_load_round_trip_and_overwrite() {
     let dir = TempDir::new("saveload");
-    let path = dir.path().join("a.tsa");
+    let path = dir.root().join("a.tsa");
     let a = synthetic(16, 16, 2, false, 1);
     a.save(&path).unwrap();
     assert_eq!(std::fs::read(&path).unwrap(), a.to_bytes());
@@ -375,7 +354,7 @@ fn save_load_round_trip_and_overwrite() {
     b.save(&path).unwrap();
     assert_eq!(Analysis::load(&path).unwrap(), b);
     // Only the file itself is in the directory: no temporary left behind.
-    let names: Vec<_> = std::fs::read_dir(dir.path())
+    let names: Vec<_> = std::fs::read_dir(dir.root())
         .unwrap()
         .map(|e| e.unwrap().file_name())
         .collect();
@@ -396,7 +375,7 @@ fn save_load_round_trip_and_overwrite() {
 #[test]
 fn save_to_missing_directory_is_write_error() {
     let dir = TempDir::new("savemissing");
-    let path = dir.path().join("nope").join("a.tsa");
+    let path = dir.root().join("nope").join("a.tsa");
     let a = synthetic(16, 16, 2, false, 1);
     match a.save(&path) {
         Err(Error::Write { path: p, .. }) => assert_eq!(p, path),
@@ -506,7 +485,7 @@ fn flipped_byte_is_checksum_error() {
 #[test]
 fn empty_and_missing_files() {
     let dir = TempDir::new("emptymissing");
-    let empty = dir.path().join("empty.tsa");
+    let empty = dir.root().join("empty.tsa");
     std::fs::write(&empty, b"").unwrap();
     match Analysis::load(&empty) {
         Err(Error::BadAnalysisFile { path, reason }) => {
@@ -515,7 +494,7 @@ fn empty_and_missing_files() {
         }
         other => panic!("expected BadAnalysisFile, got {other:?}"),
     }
-    let missing = dir.path().join("missing.tsa");
+    let missing = dir.root().join("missing.tsa");
     match Analysis::load(&missing) {
         Err(Error::Io { path, source }) => {
             assert_eq!(path, missing);

@@ -2,27 +2,21 @@
 //! Jacobian field (finite-difference Jacobian of the coordinate map), windows agree,
 //! and degenerate fields are handled.
 
+mod common;
+use common::ctx;
+
 use std::sync::{Arc, OnceLock};
 
 use texsyn::analysis::{analyze, Analysis, AnalysisOptions};
 use texsyn::field::{Field, FieldMap};
-use texsyn::gpu::{synth::GpuSynthesizer, GpuContext};
+use texsyn::gpu::synth::GpuSynthesizer;
 use texsyn::quality::jacobian_fidelity;
 use texsyn::SynthParams;
 
-fn ctx() -> &'static GpuContext {
-    static CTX: OnceLock<GpuContext> = OnceLock::new();
-    CTX.get_or_init(|| GpuContext::headless().expect("a Vulkan adapter (lavapipe) is required"))
-}
-
 fn gravel() -> Arc<Analysis> {
     static A: OnceLock<Arc<Analysis>> = OnceLock::new();
-    A.get_or_init(|| {
-        let ex =
-            texsyn::image_io::load_exemplar(std::path::Path::new("assets/gravel.png")).unwrap();
-        Arc::new(analyze(&ex, &AnalysisOptions::default(), |_| {}).unwrap())
-    })
-    .clone()
+    A.get_or_init(|| Arc::new(common::assets::analysed(&common::gravel())))
+        .clone()
 }
 
 fn synth(field: Field, size: u32, origin: [i32; 2]) -> texsyn::Synthesis {

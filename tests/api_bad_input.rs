@@ -1,7 +1,8 @@
-//! The library's public API given inconsistent or extreme values (findings of the
-//! fifteenth session's API audit): each is a clear `texsyn::Error`, never a panic.
+//! The library's public API given inconsistent or extreme values: each is a clear
+//! `texsyn::Error`, never a panic.
 
 mod common;
+use common::ctx;
 
 use std::sync::{Arc, OnceLock};
 
@@ -12,11 +13,6 @@ use texsyn::gpu::GpuContext;
 use texsyn::quality::{FloatImage, TemporalFigures};
 use texsyn::surface::mesh::Mesh;
 use texsyn::{Field, Flow, SynthParams};
-
-fn ctx() -> &'static GpuContext {
-    static CTX: OnceLock<GpuContext> = OnceLock::new();
-    CTX.get_or_init(|| GpuContext::headless().expect("a Vulkan adapter (lavapipe)"))
-}
 
 fn analysis() -> Arc<Analysis> {
     static A: OnceLock<Arc<Analysis>> = OnceLock::new();

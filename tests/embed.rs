@@ -2,13 +2,12 @@
 //! output sampled as sRGB, advection from a session, and misuse that must fail cleanly
 //! without spoiling the caller's command encoder.
 
+mod common;
+
 use texsyn::{AdvectOptions, Error, Exemplar, Session};
 
 fn gravel() -> Exemplar {
-    texsyn::image_io::load_exemplar(
-        concat!(env!("CARGO_MANIFEST_DIR"), "/assets/gravel.png").as_ref(),
-    )
-    .expect("assets/gravel.png")
+    common::gravel()
 }
 
 /// The top-left 48x48 pixels of the gravel exemplar as an RGBA8 buffer.
@@ -429,7 +428,7 @@ fn progress_syntheses_are_not_disturbed_by_other_threads_encoding() {
     ctx.take_uncaptured_errors().expect("no wgpu errors");
 }
 
-/// Misuse found by an API audit: a call with another device's context is refused (it
+/// Misuse: a call with another device's context is refused (it
 /// used to spoil the cached pipelines of the synthesizer's own device), a destroyed
 /// velocity buffer fails before anything is recorded, and a destroyed device gives
 /// errors, not panics (wgpu's `create_buffer_init` panics there).

@@ -4,25 +4,19 @@
 //! it would be.
 
 mod common;
+use common::ctx;
 
-use std::sync::{Arc, OnceLock};
+use std::sync::Arc;
 
 use texsyn::analysis::{analyze, Analysis, AnalysisOptions};
 use texsyn::field::Field;
 use texsyn::gpu::advect::{AdvectOptions, Advection};
-use texsyn::gpu::{synth::GpuSynthesizer, GpuContext};
+use texsyn::gpu::synth::GpuSynthesizer;
 use texsyn::passes::synthesize_cpu;
 use texsyn::surface::atlas::AtlasOptions;
 use texsyn::surface::mesh::Mesh;
 use texsyn::surface::pipeline::{self, SurfaceOptions};
 use texsyn::{Error, SynthParams};
-
-fn ctx() -> &'static GpuContext {
-    static CTX: OnceLock<GpuContext> = OnceLock::new();
-    CTX.get_or_init(|| {
-        GpuContext::headless().expect("a Vulkan adapter (lavapipe) is required for the tests")
-    })
-}
 
 /// The full and the lean analysis of a 40x40 crop.
 fn analyses(tileable: bool) -> (Arc<Analysis>, Arc<Analysis>) {

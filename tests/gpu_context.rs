@@ -2,15 +2,11 @@
 //! CI). Adapter choice is tested through `GpuContext::with_options`, not environment
 //! variables, so the tests cannot race each other.
 
+mod common;
+use common::fresh_ctx as context;
+
 use texsyn::gpu::context::{GpuContext, GpuOptions};
 use texsyn::Error;
-
-fn context() -> GpuContext {
-    match GpuContext::headless() {
-        Ok(ctx) => ctx,
-        Err(e) => panic!("no GPU context (install mesa-vulkan-drivers for lavapipe): {e}"),
-    }
-}
 
 /// A buffer descriptor wgpu rejects: MAP_READ may only be combined with COPY_DST.
 fn invalid_buffer() -> wgpu::BufferDescriptor<'static> {

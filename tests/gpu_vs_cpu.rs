@@ -1,40 +1,19 @@
 //! The GPU passes against their CPU mirrors, pass by pass, on lavapipe.
 
+mod common;
+use common::ctx;
+
 use std::sync::{Arc, OnceLock};
 
 use texsyn::analysis::{analyze, level_searched, Analysis, AnalysisOptions, Exemplar};
-use texsyn::gpu::{synth::GpuSynthesizer, GpuContext};
+use texsyn::gpu::synth::GpuSynthesizer;
 use texsyn::passes::plan::{PassKind, SynthPlan, SMALL_SECOND_FINEST_PASSES, UNSEARCHED_PASSES};
 use texsyn::passes::{run_cpu, synthesize_cpu};
 use texsyn::SynthParams;
 
-fn ctx() -> &'static GpuContext {
-    static CTX: OnceLock<GpuContext> = OnceLock::new();
-    CTX.get_or_init(|| {
-        GpuContext::headless().expect("a Vulkan adapter (lavapipe) is required for the tests")
-    })
-}
-
 /// A crop of the bundled exemplar (small, so the tests stay fast).
 fn exemplar(w: u32, h: u32) -> Exemplar {
-    let full = texsyn::image_io::load_exemplar(std::path::Path::new("assets/gravel.png")).unwrap();
-    let c = full.channels as usize;
-    let mut values = Vec::new();
-    let mut colors = Vec::new();
-    for y in 0..h as usize {
-        for x in 0..w as usize {
-            let i = y * full.width as usize + x;
-            values.extend_from_slice(&full.values[i * c..(i + 1) * c]);
-            colors.push(full.colors[i]);
-        }
-    }
-    Exemplar {
-        width: w,
-        height: h,
-        channels: full.channels,
-        values,
-        colors,
-    }
+    common::gravel_crop_rect(w, h)
 }
 
 fn analysis(tileable: bool, k: u32) -> Arc<Analysis> {
@@ -580,7 +559,7 @@ fn tileable_output_matches_cpu_and_wraps() {
     // (bundled gravel, 128x96, seeds 1-4): 0.906 across the wrap, 0.942 inside; clamping
     // the two finest levels instead of wrapping them gave 0.500, an output without the
     // option 0. (On the small synthetic exemplar above the wrap measures 0.53-0.61
-    // against 0.80 inside: not understood yet, docs/HISTORY.md.)
+    // against 0.80 inside, not explained yet.)
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/gravel.png");
     let ex = texsyn::image_io::load_exemplar(path.as_ref()).unwrap();
     let a = analyze(&ex, &AnalysisOptions::default(), |_| {}).unwrap();

@@ -1,6 +1,9 @@
 //! Exemplar loading, atomic writes, image and coordinate-map output.
 
-use std::path::{Path, PathBuf};
+mod common;
+use common::TempDir;
+
+use std::path::Path;
 
 use image::{DynamicImage, ImageBuffer, Luma, LumaA, Rgb, Rgba};
 use texsyn::image_io::{
@@ -8,39 +11,6 @@ use texsyn::image_io::{
     open_image, save_coords_exr_atomic, save_image_atomic, write_atomic,
 };
 use texsyn::Error;
-
-struct TempDir(PathBuf);
-impl TempDir {
-    fn new(tag: &str) -> Self {
-        let nanos = std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .unwrap()
-            .as_nanos();
-        let d = std::env::temp_dir().join(format!(
-            "texsyn-test-imageio-{tag}-{}-{nanos}",
-            std::process::id()
-        ));
-        std::fs::create_dir_all(&d).unwrap();
-        TempDir(d)
-    }
-    fn join(&self, name: &str) -> PathBuf {
-        self.0.join(name)
-    }
-    /// Names of everything in the directory, sorted.
-    fn names(&self) -> Vec<String> {
-        let mut v: Vec<String> = std::fs::read_dir(&self.0)
-            .unwrap()
-            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-            .collect();
-        v.sort();
-        v
-    }
-}
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
 
 fn save(img: &DynamicImage, path: &Path) {
     img.save(path).unwrap();
@@ -271,7 +241,7 @@ fn atomic_write_to_missing_directory() {
         other => panic!("expected Write, got {other:?}"),
     }
     assert!(!path.exists());
-    assert!(dir.names().is_empty());
+    assert!(dir.entries().is_empty());
 }
 
 #[test]
@@ -282,7 +252,7 @@ fn atomic_write_to_a_directory() {
     let r = write_atomic(&target, |_| Ok(()));
     assert!(matches!(r, Err(Error::Write { .. })), "{r:?}");
     assert!(target.is_dir());
-    assert_eq!(dir.names(), vec!["adir".to_string()]);
+    assert_eq!(dir.entries(), vec!["adir".to_string()]);
     // Also through the image saver.
     let r = save_image_atomic(&dir.join("adir"), 1, 1, 4, &[0; 4]);
     assert!(matches!(r, Err(Error::Write { .. })), "{r:?}");
@@ -308,7 +278,7 @@ fn failed_write_leaves_no_temp_and_keeps_old_content() {
         other => panic!("expected Write, got {other:?}"),
     }
     assert_eq!(std::fs::read(&path).unwrap(), b"old content");
-    assert_eq!(dir.names(), vec!["out.bin".to_string()]);
+    assert_eq!(dir.entries(), vec!["out.bin".to_string()]);
 
     // The writer panics.
     let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
@@ -319,7 +289,7 @@ fn failed_write_leaves_no_temp_and_keeps_old_content() {
     }));
     assert!(r.is_err());
     assert_eq!(std::fs::read(&path).unwrap(), b"old content");
-    assert_eq!(dir.names(), vec!["out.bin".to_string()]);
+    assert_eq!(dir.entries(), vec!["out.bin".to_string()]);
 
     // A successful write replaces the content and leaves only the target.
     write_atomic(&path, |w| {
@@ -330,7 +300,7 @@ fn failed_write_leaves_no_temp_and_keeps_old_content() {
     })
     .unwrap();
     assert_eq!(std::fs::read(&path).unwrap(), b"new");
-    assert_eq!(dir.names(), vec!["out.bin".to_string()]);
+    assert_eq!(dir.entries(), vec!["out.bin".to_string()]);
 }
 
 #[test]
@@ -393,7 +363,7 @@ fn save_image_png_grey_rgb_rgba() {
         Some(image::ImageFormat::Png)
     );
 
-    assert_eq!(dir.names(), vec!["a.png", "c.png", "g.png", "noext"]);
+    assert_eq!(dir.entries(), vec!["a.png", "c.png", "g.png", "noext"]);
 }
 
 #[test]
@@ -433,9 +403,9 @@ fn save_image_every_supported_extension() {
         }
     }
     assert!(
-        !dir.names().iter().any(|n| n.starts_with('.')),
+        !dir.entries().iter().any(|n| n.starts_with('.')),
         "temporary files left: {:?}",
-        dir.names()
+        dir.entries()
     );
 }
 
@@ -469,7 +439,7 @@ fn save_image_rejects_bad_parameters() {
         save_image_atomic(&dir.join("x.png"), 0, 0, 3, &[]),
         Err(Error::InvalidParameter(_))
     ));
-    assert!(dir.names().is_empty());
+    assert!(dir.entries().is_empty());
 }
 
 #[test]
@@ -497,7 +467,7 @@ fn coords_exr_round_trip() {
     let zeros = vec![[0, 0]; (w * h) as usize];
     save_coords_exr_atomic(&path, w, h, &zeros).unwrap();
     assert_eq!(load_coords_exr(&path).unwrap().2, zeros);
-    assert_eq!(dir.names(), vec!["coords.exr"]);
+    assert_eq!(dir.entries(), vec!["coords.exr"]);
 
     // Wrong length.
     assert!(matches!(
@@ -926,13 +896,16 @@ fn several_files_are_written_all_or_nothing() {
     let e = write_files_atomic(&[(&a, b"new"), (&missing, b"b")]).unwrap_err();
     assert!(matches!(e, Error::Write { .. }), "{e}");
     assert_eq!(std::fs::read(&a).unwrap(), b"old");
-    assert_eq!(dir.names(), vec!["a.bin".to_string()]);
+    assert_eq!(dir.entries(), vec!["a.bin".to_string()]);
 
     let b = dir.join("b.bin");
     write_files_atomic(&[(&a, b"new"), (&b, b"b")]).unwrap();
     assert_eq!(std::fs::read(&a).unwrap(), b"new");
     assert_eq!(std::fs::read(&b).unwrap(), b"b");
-    assert_eq!(dir.names(), vec!["a.bin".to_string(), "b.bin".to_string()]);
+    assert_eq!(
+        dir.entries(),
+        vec!["a.bin".to_string(), "b.bin".to_string()]
+    );
 }
 
 /// The JPEG decoder fills a truncated file's missing part with grey without an error, so

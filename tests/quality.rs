@@ -1,8 +1,6 @@
 //! Integration tests of `texsyn::quality`: texture energy, histograms, verbatim-copy
 //! statistics, the report and its JSON form.
 
-use std::time::Instant;
-
 use texsyn::quality::{
     coarse_energy_any_phase, evaluate, histogram_distance, layout_repetition, multiscale_energy,
     shuffled_baseline, texture_energy, texture_energy_any, texture_energy_exact, verbatim_stats,
@@ -317,7 +315,6 @@ fn layout_repetition_finds_a_tiling_and_not_a_random_layout() {
     // 8x8 exemplar tiled over 512x512 (4096 copies of each pixel) and a map copying one
     // pixel everywhere both finish quickly, the first near its true figure (the copy 24
     // pixels on: 488/512 of the pixels).
-    let t0 = Instant::now();
     let fine: Vec<[i32; 2]> = (0..512u32 * 512)
         .map(|i| [((i % 512) % 8) as i32, ((i / 512) % 8) as i32])
         .collect();
@@ -326,7 +323,6 @@ fn layout_repetition_finds_a_tiling_and_not_a_random_layout() {
     let one = vec![[3i32, 4]; 512 * 512];
     let o = layout_repetition(&one, 512, 512, 8, 8, true).unwrap();
     assert!(o.share.is_finite() && o.share > 1.0, "{o:?}");
-    assert!(t0.elapsed().as_secs_f64() < 20.0, "{:?}", t0.elapsed());
     // Bad sizes are errors.
     assert!(layout_repetition(&tiled, w, h + 1, 32, 32, true).is_err());
     assert!(layout_repetition(&[], 0, 0, 32, 32, true).is_err());
@@ -560,37 +556,28 @@ fn from_dynamic_keeps_precision_and_drops_alpha() {
     assert!(FloatImage::from_rgba8(3, 2, &colors).is_err());
 }
 
-/// Timing (printed, not asserted): 512x512 output against a 128x128 exemplar, r = 3;
-/// asserted: a patchwork of the exemplar scores far below a shuffled baseline, and the
-/// fast energy is an upper bound within 3% of brute force on a crop where that is
-/// affordable.
+/// A 512x512 output against a 128x128 exemplar (r = 3): a patchwork of the exemplar
+/// scores far below a shuffled baseline, and the fast energy is an upper bound within 3%
+/// of brute force on a crop where that is affordable.
 #[test]
-fn timing_512_vs_128() {
+fn patchwork_energy_is_far_below_a_shuffle_and_bounds_brute_force() {
     let ex = value_noise(128, 128, 3, 20);
     let (out, _) = patchwork(&ex, 512, 512, 24, 21);
     let shuffled = shuffled_baseline(&ex, 512, 512, 22);
     let mut energies = Vec::new();
     for (name, img) in [("patchwork", &out), ("shuffled", &shuffled)] {
-        let t = Instant::now();
         let e = texture_energy(&ex, img, 3).unwrap();
-        let el = t.elapsed().as_secs_f64();
-        println!("texture_energy 512x512 vs 128x128 r=3 ({name}): {e:.6e} in {el:.2} s");
+        println!("texture_energy 512x512 vs 128x128 r=3 ({name}): {e:.6e}");
         energies.push(e);
     }
     assert!(energies[0] < 0.5 * energies[1], "{energies:?}");
-    let t = Instant::now();
     let m = multiscale_energy(&ex, &out, 3).unwrap();
-    println!(
-        "multiscale_energy (patchwork): {m:?} in {:.2} s",
-        t.elapsed().as_secs_f64()
-    );
+    println!("multiscale_energy (patchwork): {m:?}");
     let crop = out.crop(100, 200, 40, 40).unwrap();
-    let t = Instant::now();
     let exact = texture_energy_exact(&ex, &crop, 3).unwrap();
-    let te = t.elapsed().as_secs_f64();
     let fast = texture_energy(&ex, &crop, 3).unwrap();
     println!(
-        "40x40 crop: fast {fast:.6e} exact {exact:.6e} (ratio {:.5}, exact took {te:.2} s)",
+        "40x40 crop: fast {fast:.6e} exact {exact:.6e} (ratio {:.5})",
         fast / exact
     );
     assert!(

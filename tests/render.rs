@@ -2,10 +2,12 @@
 //! the machine has (lavapipe in CI): texture orientation and lighting, depth test,
 //! magnification conventions, errors and determinism.
 
+mod common;
+use common::fresh_ctx as context;
+
 use std::f32::consts::TAU;
 
 use glam::{Vec2, Vec3};
-use texsyn::gpu::GpuContext;
 use texsyn::surface::render::{
     render_view, render_views, shade, Camera, RenderOptions, SurfaceTexture,
 };
@@ -13,13 +15,6 @@ use texsyn::surface::Mesh;
 use texsyn::Error;
 
 const BACKGROUND: [u8; 3] = [10, 20, 30];
-
-fn context() -> GpuContext {
-    match GpuContext::headless() {
-        Ok(ctx) => ctx,
-        Err(e) => panic!("no GPU context (install mesa-vulkan-drivers for lavapipe): {e}"),
-    }
-}
 
 /// A square in the plane z = `z`, centred on the z axis, facing +Z, with glTF uvs
 /// (v down): the top-left corner (-h, +h) has uv `uv0`, the bottom-right one `uv1`.
@@ -435,9 +430,7 @@ fn orbit_views_are_side_by_side_and_deterministic() {
         background: BACKGROUND,
     };
     let mesh = cube();
-    let start = std::time::Instant::now();
     let a = render_views(&ctx, &mesh, &texture, &opts).expect("render");
-    println!("4 views of 128x128: {:.3} s", start.elapsed().as_secs_f64());
     let b = render_views(&ctx, &mesh, &texture, &opts).expect("render again");
     assert_eq!(a.dimensions(), (4 * 128, 128));
     assert!(a.as_raw() == b.as_raw(), "two renders differ");

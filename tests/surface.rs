@@ -4,7 +4,7 @@ use std::sync::{Arc, OnceLock};
 
 use glam::{Vec2, Vec3};
 use texsyn::analysis::{analyze, Analysis, AnalysisOptions};
-use texsyn::gpu::{synth::GpuSynthesizer, GpuContext};
+use texsyn::gpu::synth::GpuSynthesizer;
 use texsyn::passes::plan::{PassKind, SynthPlan};
 use texsyn::passes::run_cpu_surface;
 use texsyn::surface::atlas::{build_atlas, AtlasOptions, AtlasSource};
@@ -12,13 +12,6 @@ use texsyn::surface::mesh::Mesh;
 use texsyn::surface::pipeline::{self, SurfaceOptions};
 use texsyn::surface::seams::seam_report;
 use texsyn::SynthParams;
-
-fn ctx() -> &'static GpuContext {
-    static CTX: OnceLock<GpuContext> = OnceLock::new();
-    CTX.get_or_init(|| {
-        GpuContext::headless().expect("a Vulkan adapter (lavapipe) is required for the tests")
-    })
-}
 
 fn analysis(size: u32) -> Arc<Analysis> {
     type Cache = std::sync::Mutex<Vec<(u32, Arc<Analysis>)>>;
@@ -385,14 +378,14 @@ fn open_meshes_and_bad_surface_inputs() {
 }
 
 mod common;
+use common::ctx;
 
 /// `texsyn surface` end to end on the bundled bunny, and its bad inputs.
 #[test]
 fn surface_cli_end_to_end_and_bad_inputs() {
     let dir = common::TempDir::new("surface-cli");
-    let bin = env!("CARGO_BIN_EXE_texsyn");
     let run = |args: &[&str]| {
-        std::process::Command::new(bin)
+        common::cli::command(&common::repo())
             .args(args)
             .env("XDG_RUNTIME_DIR", std::env::temp_dir())
             .output()
@@ -589,7 +582,7 @@ fn surface_cli_end_to_end_and_bad_inputs() {
 fn surface_cli_magnifies_material_maps() {
     let dir = common::TempDir::new("surface-magnify");
     let out = dir.path("m.glb");
-    let o = std::process::Command::new(env!("CARGO_BIN_EXE_texsyn"))
+    let o = common::cli::command(&common::repo())
         .args([
             "surface",
             "assets/meshes/bunny.glb",
