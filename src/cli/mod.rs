@@ -7,6 +7,7 @@ mod analyze;
 mod bench;
 mod eval;
 mod field;
+mod frames;
 mod interrupt;
 mod surface;
 mod synth;
