@@ -14,9 +14,12 @@ use texsyn::quality::FloatImage;
 use texsyn::{AnalysisOptions, SynthParams};
 
 use super::bench::print_pass_table;
-use super::field::{parse_field, FieldSpec, FIELD_HELP};
+use super::field::FieldSpec;
+use super::frames::{check_animation_fits, write_apng, write_gif, Sink, Staging};
 use super::synth::{read_source, Source};
-use super::{fail, fmt_duration, parse_size, CliResult, TileArgs, Ui};
+use super::{
+    fail, fmt_duration, parse_size, CliResult, TileArgs, Ui, ADVANCED, CONTROLS, LOOK, OUTPUT,
+};
 
 /// Advect a synthesized texture along a flow, frame by frame
 #[derive(Args, Debug)]
@@ -37,214 +40,201 @@ pub struct AdvectArgs {
     /// Exemplar image, or an analysis file written by `texsyn analyze`
     pub exemplar: PathBuf,
 
-    /// The flow (see --help)
+    /// The flow (SPEC: see --help)
     #[arg(long, value_name = "SPEC", value_parser = parse_flow, long_help = FLOW_HELP)]
     pub flow: FlowArg,
 
-    /// Frames to advect after the first
-    #[arg(long, default_value_t = 100, value_parser = clap::value_parser!(u32).range(1..=100_000))]
-    pub frames: u32,
-
     /// Output: a folder for PNG frames, or an animation: OUT.png (animated PNG) or OUT.gif
-    #[arg(short, long, value_name = "DIR|OUT.png|OUT.gif", value_parser = super::parse_named_output)]
+    #[arg(short, long, value_name = "DIR|OUT.png|OUT.gif", value_parser = super::parse_named_output,
+          help_heading = OUTPUT)]
     pub output: PathBuf,
+
+    /// Frames to advect after the first
+    #[arg(long, default_value_t = 100, value_parser = clap::value_parser!(u32).range(1..=100_000),
+          help_heading = OUTPUT)]
+    pub frames: u32,
 
     /// Output size (2D; with --mesh the atlas size is --atlas-size)
     #[arg(long, value_name = "N[xM]", value_parser = parse_size, default_value = "256",
-          conflicts_with = "mesh")]
+          conflicts_with = "mesh", help_heading = OUTPUT)]
     pub size: [u32; 2],
 
-    /// Time step: a frame moves the texture by velocity * dt
-    #[arg(long, default_value_t = 1.0, allow_hyphen_values = true)]
-    pub dt: f64,
-
     /// Write every K-th frame only
-    #[arg(long, value_name = "K", default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(long, value_name = "K", default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..),
+          help_heading = OUTPUT)]
     pub every: u32,
 
+    /// Time step: a frame moves the texture by velocity * dt
+    #[arg(long, default_value_t = 1.0, allow_hyphen_values = true, help_heading = OUTPUT)]
+    pub dt: f64,
+
+    #[command(flatten, next_help_heading = LOOK)]
+    pub seed: super::SeedArg,
+
+    /// Keep the texture's look under turning flows by remaking it as it moves (2D default)
+    ///
     /// Keep the texture's look under turning and divergent flows: remake the advected
     /// levels below the coarsest one wherever the flow turns or stretches them, and renew
     /// the coarsest where it has turned or stretched by about 5 degrees or 12% (--levels 4
-    /// --threshold 0.12, the coarsest level's threshold here; both can still be given),
-    /// fading what it renews over --fade 2 frames. The texture energy stays near frame
-    /// 0's under a vortex, but the texture is continuously remade as it moves (over tens
-    /// of frames most of it is new); a uniform flow still moves it exactly (where the
-    /// field is constant). Every advected level is corrected in full every frame
-    /// (--correct-coherent implied), the coarsest twice where the field is constant
-    /// (--coarsest-passes). The
-    /// default in 2D without a field or with a constant one; on a mesh or along a varying
-    /// --field it remakes the detail almost everywhere and pops, and the default there is
-    /// --carry
-    #[arg(long, conflicts_with_all = ["advect_finest", "resynthesize", "carry"])]
+    /// --threshold 0.12, both can still be given), fading what it renews over --fade 2
+    /// frames. The texture is continuously remade as it moves; a uniform flow still moves
+    /// it exactly. Every advected level is corrected in full every frame, the coarsest
+    /// twice where the field is constant (--coarsest-passes). The default in 2D without a
+    /// field or with a constant one; on a mesh or along a varying --field it remakes the
+    /// detail almost everywhere and pops, and the default there is --carry
+    #[arg(long, conflicts_with_all = ["advect_finest", "resynthesize", "carry"], help_heading = LOOK)]
     pub keep_look: bool,
 
+    /// Carry the texture with the flow, the paper's scheme (default on a mesh or a field)
+    ///
     /// Carry the texture with the flow (the paper's scheme): the coordinates move with
     /// the flow, only pixels distorted beyond --threshold are renewed, and one correction
     /// pass keeps the texture intact. The default on a mesh or along a varying --field,
-    /// where it pops far less than --keep-look (bunny's atlas, vortex: 0.04% of the 8x8
-    /// blocks per frame against 10.7%); in 2D under a turning flow it breaks the texture
-    /// up (gravel, 300 frames of the vortex: texture energy x2.5 frame 0's). Also implied
-    /// by --advect-finest and --resynthesize
-    #[arg(long)]
+    /// where it pops far less than --keep-look; in 2D under a turning flow it breaks the
+    /// texture up. Also implied by --advect-finest and --resynthesize
+    #[arg(long, help_heading = LOOK)]
     pub carry: bool,
 
+    /// Fade pops in over N frames (0..=64, 0: off) [default: 2 with --keep-look, else 0]
+    ///
     /// Fade pops in over N frames (0: off): where a pixel's texture changes other than by
     /// moving with the flow (a renewed patch and the detail remade under it), its old
     /// content moves on with the flow and fades out while the new one fades in, with the
-    /// contrast kept. Gravel, vortex, 300 frames, --keep-look: --fade 1 pops 6.5x less
-    /// (0.175% of the 8x8 blocks per frame) for a texture energy of x1.06 frame 0's at
-    /// frame 300 (x1.00 without), --fade 2 20x less (0.058%) at x1.17; about 10 ms more
-    /// per 512x512 frame on lavapipe (its pass, 12-16 ms, replaces the 3 ms gather). A
-    /// uniform flow of whole pixels is unaffected; 0..=64 [default: 2 with --keep-look (the
-    /// default in 2D without a varying --field), else 0]
+    /// contrast kept. Fewer pops for a slightly higher texture energy; a uniform flow of
+    /// whole pixels is unaffected; 0..=64 [default: 2 with --keep-look (the default in 2D
+    /// without a varying --field), else 0]
     #[arg(long, value_name = "N", allow_hyphen_values = true,
-          value_parser = clap::value_parser!(u32).range(0..=texsyn::passes::advect::MAX_FADE_FRAMES as i64))]
+          value_parser = clap::value_parser!(u32).range(0..=texsyn::passes::advect::MAX_FADE_FRAMES as i64),
+          help_heading = LOOK)]
     pub fade: Option<u32>,
 
+    #[command(flatten, next_help_heading = CONTROLS)]
+    pub field: super::FieldArg,
+
+    /// Advect over this mesh's atlas instead of an image (.gltf/.glb); frames are renders
+    #[arg(long, value_name = "MESH", conflicts_with = "field", help_heading = CONTROLS)]
+    pub mesh: Option<PathBuf>,
+
+    /// Atlas size for --mesh (8 to 16384) [default: 512]
+    #[arg(long, requires = "mesh",
+          value_parser = clap::value_parser!(u32).range(8..=16384), help_heading = CONTROLS)]
+    pub atlas_size: Option<u32>,
+
+    #[command(flatten, next_help_heading = CONTROLS)]
+    pub tile: TileArgs,
+
+    /// With --fade: the mean colour change (0-255) of the jumps around a pixel that fades
+    ///
     /// With --fade: how much the jumps around a pixel that jumped must change the colour
     /// on average (of 255, over its 3x3 neighbourhood) for it to fade (0-255). Lower fades
-    /// more pops for a higher texture energy (gravel, --keep-look --fade 1, 300 frames of
-    /// the vortex: 35 left 0.099% of the 8x8 blocks popping per frame at a texture energy
-    /// of x1.10 frame 0's at frame 300; 45 0.175% at x1.06) [default: 45]
-    #[arg(
-        long,
-        value_name = "T",
-        value_parser = clap::value_parser!(u32).range(0..=255),
-        allow_hyphen_values = true
-    )]
+    /// more pops for a higher texture energy [default: 45]
+    #[arg(long, value_name = "T", value_parser = clap::value_parser!(u32).range(0..=255),
+          allow_hyphen_values = true, help_heading = ADVANCED, hide_short_help = true)]
     pub fade_change: Option<u32>,
 
-    /// Anchored renewals (0: off; 4 measured best): where the coarsest advected level is
+    /// Anchored renewals: anchor grid spacing (0: off; 4 works best)
+    ///
+    /// Anchored renewals (0: off; 4 works best): where the coarsest advected level is
     /// renewed, a pixel continues the nearest-landing of the anchors around it (a grid of
     /// this spacing) straightened along the field, instead of being upsampled from the
     /// coarser level, so it keeps nearly what it showed instead of popping. For textures
-    /// without long structures: gravel, --keep-look --fade 0, 300 frames of the vortex:
-    /// 0.89% of the 8x8 blocks popping per frame against 1.14%, with --fade 1 0.149% against
-    /// 0.175%, at the same mean energy; the marble's energy rises (x1.10 against x0.95)
-    #[arg(
-        long,
-        value_name = "SPACING",
-        default_value_t = 0,
-        allow_hyphen_values = true
-    )]
+    /// without long structures
+    #[arg(long, value_name = "SPACING", default_value_t = 0, allow_hyphen_values = true, help_heading = ADVANCED, hide_short_help = true)]
     pub anchor: u32,
 
+    /// With --anchor: the share of the renewals (0-1) upsampled anyway [default: 0.5]
+    ///
     /// With --anchor: the share of the renewals (0-1) upsampled from the coarser level
     /// anyway. Anchored renewals never bring back the coarse levels' large structures,
-    /// which break up over hundreds of frames (marble veins) without some; lower pops
-    /// less (gravel, fifty-fifth session's build: 0 left 0.63% popping, 0.5 1.09%)
-    /// [default: 0.5]
-    #[arg(long, value_name = "SHARE", allow_hyphen_values = true)]
+    /// which break up over hundreds of frames without some; lower pops less [default: 0.5]
+    #[arg(long, value_name = "SHARE", allow_hyphen_values = true, help_heading = ADVANCED, hide_short_help = true)]
     pub anchor_upsample: Option<f32>,
 
+    /// Levels each frame works on (the finest ones) [default: 3, 4 with --keep-look]
+    ///
     /// Levels each frame works on (the finest ones): the finest is upsampled from the
     /// others, which are advected (with --advect-finest, all are advected; with
     /// --resynthesize K, the K below the finest are re-synthesized) [default: 3, 4 with
-    /// --keep-look, the default in 2D without a varying --field]
-    #[arg(long)]
+    /// --keep-look]
+    #[arg(long, help_heading = ADVANCED, hide_short_help = true)]
     pub levels: Option<usize>,
 
+    /// Advect and correct the finest level in place too (the paper's scheme)
+    ///
     /// Advect and correct the finest level in place too (the paper's scheme) instead of
     /// upsampling it every frame from the advected second-finest level (about twice the
     /// cost per frame, and the texture energy rises more)
-    #[arg(long)]
+    #[arg(long, help_heading = ADVANCED, hide_short_help = true)]
     pub advect_finest: bool,
 
+    /// Levels below the finest that every frame re-synthesizes instead of advecting
+    ///
     /// Levels below the finest that every frame re-synthesizes (upsampled from the
     /// advected levels and corrected, as in a synthesis) instead of advecting them: a
     /// turning flow then breaks up only the coarse advected levels, and the texture
     /// keeps its frame-0 energy, for more change between frames; --levels must be at
     /// least this + 2
-    #[arg(long, value_name = "K", default_value_t = AdvectOptions::default().resynthesize)]
+    #[arg(long, value_name = "K", default_value_t = AdvectOptions::default().resynthesize, help_heading = ADVANCED, hide_short_help = true)]
     pub resynthesize: usize,
 
+    /// Distortion beyond which a pixel is re-synthesized [default: 0.5, 0.12 with --keep-look]
+    ///
     /// Distortion threshold |J_obs - J|_F beyond which a pixel is re-synthesized (steps
     /// off by a whole pixel on both sides are patch seams, not distortion, so thresholds
     /// of about 1 and more re-synthesize little: only the pixels with seams on both sides
     /// of both axes, which continue no patch and are re-synthesized at any threshold;
     /// with --keep-look, of the coarsest advected level) [default: 0.5, 0.12 with
-    /// --keep-look, the default in 2D without a varying --field]
-    #[arg(long)]
+    /// --keep-look]
+    #[arg(long, help_heading = ADVANCED, hide_short_help = true)]
     pub threshold: Option<f32>,
 
     /// Correction passes per advected level and frame
-    #[arg(long, default_value_t = AdvectOptions::default().passes)]
+    #[arg(long, default_value_t = AdvectOptions::default().passes, help_heading = ADVANCED, hide_short_help = true)]
     pub passes: u32,
 
+    /// Correction passes per frame of the coarsest advected level (0..=16)
+    ///
     /// Correction passes per frame of the coarsest advected level (where it is not the
-    /// second-finest), 0..=16. It is small: with --keep-look a second pass there
-    /// settles the renewals (gravel, vortex, 300 frames, --fade 0: 1.14% of the blocks
-    /// popping at x1.00 of frame 0's texture energy, against 1.61% at x1.12), but on a mesh or
-    /// along a varying --field more passes there pop more [default: with --keep-look in
-    /// 2D without a field or with a constant one 2, or --passes if that is 0 or above 2;
-    /// else --passes]
-    #[arg(long, value_name = "N")]
+    /// second-finest), 0..=16. With --keep-look a second pass there settles the renewals,
+    /// but on a mesh or along a varying --field more passes there pop more [default: with
+    /// --keep-look in 2D without a field or with a constant one 2, or --passes if that is
+    /// 0 or above 2; else --passes]
+    #[arg(long, value_name = "N", help_heading = ADVANCED, hide_short_help = true)]
     pub coarsest_passes: Option<u32>,
 
-    /// Interpolate the exemplar bilinearly at the advected coordinates (smoother
-    /// sub-pixel motion, but soft) instead of reading the nearest texel
-    #[arg(long)]
-    pub bilinear: bool,
-
-    /// Jacobian field the texture follows (2D; see `texsyn synth --help`; on a mesh the
-    /// surface's tangent frames orient the texture)
-    #[arg(long, value_name = "SPEC", value_parser = parse_field, long_help = FIELD_HELP,
-          conflicts_with = "mesh")]
-    pub field: Option<FieldSpec>,
-
-    /// Random seed of the first frame's synthesis (as for synth)
-    #[arg(long, default_value_t = SynthParams::default().seed,
-          allow_hyphen_values = true, value_parser = super::parse_seed)]
-    pub seed: u32,
-
-    /// Compute texture energy (of 5x5 windows, as `texsyn eval --flow`) every K frames (it
-    /// is the costly figure; 0: first and last)
-    #[arg(long, value_name = "K", default_value_t = 0)]
-    pub energy_every: usize,
-
-    /// Score the most corrected level's similarity-set candidates bilinearly, as the coherent
-    /// ones, instead of at their nearest texel (slower, about the same figures)
-    #[arg(long)]
-    pub interpolate_sets: bool,
-
-    /// Read the most corrected level's exemplar tables at each position exactly (bilinear at
-    /// 1/256 pixel) instead of at its nearest quarter pixel from supersampled tables
-    /// (slower, about the same figures)
-    #[arg(long)]
-    pub exact_reads: bool,
-
-    /// Also correct the pixels inside coherent patches (all 8 neighbours continue the
-    /// pixel's patch within a quarter pixel), which the frames otherwise leave as they
-    /// are (slower, about the same figures)
-    #[arg(long)]
-    pub correct_coherent: bool,
-
+    /// Score the similarity sets on every N-th correction only (1..=16) [default: 2, 4 with --keep-look]
+    ///
     /// Score the similarity-set candidates on every N-th correction of a pixel on the
     /// most corrected level (the second-finest, the finest with --advect-finest, or the
     /// advected level above the re-synthesized ones with --resynthesize; with
-    /// --keep-look, every advected level), 1..=16 (1: every correction, as synthesis does
-    /// by default; 2 is about an eighth faster per frame for energies 1-2% higher); with
-    /// --passes above 1, on every N-th pass of a frame [default: 2, 4 with --keep-look, the
-    /// default in 2D without a varying --field]
-    #[arg(long, value_name = "N")]
+    /// --keep-look, every advected level), 1..=16 (1: every correction); with --passes
+    /// above 1, on every N-th pass of a frame [default: 2, 4 with --keep-look]
+    #[arg(long, value_name = "N", help_heading = ADVANCED, hide_short_help = true)]
     pub sets_every: Option<u32>,
 
-    /// Also time every dispatch of each frame (each submitted on its own) and print a
-    /// table per level and pass: medians over the frames
-    #[arg(long)]
+    /// Interpolate the exemplar bilinearly at the advected coordinates (smoother, softer)
+    #[arg(long, help_heading = ADVANCED, hide_short_help = true)]
+    pub bilinear: bool,
+
+    /// Score the similarity-set candidates bilinearly (slower, about the same figures)
+    #[arg(long, help_heading = ADVANCED, hide_short_help = true)]
+    pub interpolate_sets: bool,
+
+    /// Read the exemplar tables exactly, not at the nearest quarter pixel (slower)
+    #[arg(long, help_heading = ADVANCED, hide_short_help = true)]
+    pub exact_reads: bool,
+
+    /// Also correct the pixels inside coherent patches (slower, about the same figures)
+    #[arg(long, help_heading = ADVANCED, hide_short_help = true)]
+    pub correct_coherent: bool,
+
+    /// Texture energy every K frames (0: the first and the last only)
+    #[arg(long, value_name = "K", default_value_t = 0, help_heading = ADVANCED, hide_short_help = true)]
+    pub energy_every: usize,
+
+    /// Also time every dispatch of each frame and print a table per level and pass
+    #[arg(long, help_heading = ADVANCED, hide_short_help = true)]
     pub per_pass: bool,
-
-    /// Advect over this mesh's atlas instead of an image (.gltf/.glb); frames are renders
-    #[arg(long, value_name = "MESH")]
-    pub mesh: Option<PathBuf>,
-
-    /// Atlas size for --mesh (8 to 16384) [default: 512]
-    #[arg(long, requires = "mesh",
-          value_parser = clap::value_parser!(u32).range(8..=16384))]
-    pub atlas_size: Option<u32>,
-
-    #[command(flatten)]
-    pub tile: TileArgs,
 }
 
 /// A `--flow` as given: presets are parsed at once (a typo is a usage error), an
@@ -272,200 +262,6 @@ pub fn parse_flow(s: &str) -> Result<FlowArg, String> {
     }
 }
 
-/// Frames of a folder output go to a hidden staging folder next to it first; they
-/// replace the folder's frames only once every frame was written. A failed run leaves
-/// nothing behind (the staging folder is removed when dropped uncommitted), and a
-/// shorter re-run leaves no stale frames of an earlier one.
-struct Staging {
-    dir: PathBuf,
-    target: PathBuf,
-    committed: bool,
-}
-
-fn is_frame_file(name: &str) -> bool {
-    name.len() == 15
-        && name.starts_with("frame_")
-        && name.ends_with(".png")
-        && name[6..11].bytes().all(|b| b.is_ascii_digit())
-}
-
-impl Staging {
-    fn new(target: &Path, inputs: &[(&str, &Path)]) -> CliResult<Self> {
-        if target.exists() && !target.is_dir() {
-            return Err(fail(format!(
-                "{} exists and is not a folder: give a folder for the frames, a .png or a .gif",
-                target.display()
-            )));
-        }
-        if std::fs::symlink_metadata(target).is_ok() && !target.exists() {
-            return Err(fail(format!(
-                "-o {}: a symbolic link to a missing path; remove it or give another folder",
-                target.display()
-            )));
-        }
-        if target.is_dir() {
-            Self::check_existing(target, inputs)?;
-        }
-        let name = target.file_name().ok_or_else(|| {
-            fail(format!(
-                "-o {}: give the frames' folder by name (e.g. -o frames or -o ../frames): \
-                     the finished folder replaces it as a whole, which `.` or `..` cannot be",
-                target.display()
-            ))
-        })?;
-        let parent = match target.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-            _ => PathBuf::from("."),
-        };
-        // Like file outputs: the folder itself is created, its parent must exist.
-        super::check_parent_dir(target, &parent)?;
-        let prefix = format!(".{}.partial-", name.to_string_lossy());
-        remove_stale_staging(&parent, &prefix);
-        let dir = parent.join(format!("{prefix}{}", std::process::id()));
-        // Listed before it exists: an interrupted run removes it (see cli::interrupt).
-        texsyn::image_io::register_pending_output(&dir, true);
-        std::fs::create_dir(&dir).map_err(|e| {
-            texsyn::image_io::forget_pending_output(&dir);
-            fail(format!(
-                "cannot create the folder {}: {e}",
-                target.display()
-            ))
-        })?;
-        Ok(Self {
-            dir,
-            target: target.to_path_buf(),
-            committed: false,
-        })
-    }
-
-    /// An existing folder takes the frames: checked before any work rather than when
-    /// they are moved in. It must take new files, no frame's name may be taken by a
-    /// folder, and no input may be one of its frames (this run replaces them).
-    fn check_existing(target: &Path, inputs: &[(&str, &Path)]) -> CliResult<()> {
-        super::takes_new_files(target).map_err(|e| {
-            fail(format!(
-                "cannot write the frames into {}: it does not take new files ({e}); choose \
-                 a writable folder",
-                target.display()
-            ))
-        })?;
-        let entries = std::fs::read_dir(target)
-            .map_err(|e| fail(format!("cannot read the folder {}: {e}", target.display())))?;
-        for entry in entries.flatten() {
-            if is_frame_file(&entry.file_name().to_string_lossy())
-                && entry.file_type().is_ok_and(|t| t.is_dir())
-            {
-                return Err(fail(format!(
-                    "cannot write the frames into {}: {} is a folder, where a frame goes; \
-                     move it, or give another -o",
-                    target.display(),
-                    entry.path().display()
-                )));
-            }
-        }
-        let folder = std::fs::canonicalize(target).ok();
-        for (what, input) in inputs {
-            let name = input.file_name().map(|n| n.to_string_lossy().into_owned());
-            let parent = match input.parent() {
-                Some(p) if !p.as_os_str().is_empty() => p,
-                _ => Path::new("."),
-            };
-            if name.is_some_and(|n| is_frame_file(&n))
-                && folder.is_some()
-                && std::fs::canonicalize(parent).ok() == folder
-            {
-                return Err(fail(format!(
-                    "the {what} {} is a frame of the output folder {}, which this run \
-                     replaces: copy it elsewhere, or give another -o",
-                    input.display(),
-                    target.display()
-                )));
-            }
-        }
-        Ok(())
-    }
-
-    fn commit(mut self) -> CliResult<()> {
-        let err = |e: std::io::Error| fail(format!("cannot write {}: {e}", self.target.display()));
-        if self.target.is_dir() {
-            // All or nothing: a name the new frames cannot take (a folder put there
-            // since the start) fails before any frame is replaced.
-            for entry in std::fs::read_dir(&self.dir).map_err(err)? {
-                let to = self.target.join(entry.map_err(err)?.file_name());
-                if std::fs::symlink_metadata(&to).is_ok_and(|m| m.is_dir()) {
-                    return Err(fail(format!(
-                        "cannot write {}: it is a folder, where a frame goes; move it and \
-                         run again",
-                        to.display()
-                    )));
-                }
-            }
-            // The new frames replace the old ones of the same names (each rename is
-            // atomic), then the old frames beyond them go: the folder never lacks a
-            // frame, and other files in it are kept.
-            let mut new = std::collections::HashSet::new();
-            for entry in std::fs::read_dir(&self.dir).map_err(err)? {
-                let entry = entry.map_err(err)?;
-                std::fs::rename(entry.path(), self.target.join(entry.file_name())).map_err(err)?;
-                new.insert(entry.file_name());
-            }
-            for entry in std::fs::read_dir(&self.target).map_err(err)? {
-                let entry = entry.map_err(err)?;
-                let name = entry.file_name();
-                if is_frame_file(&name.to_string_lossy()) && !new.contains(&name) {
-                    std::fs::remove_file(entry.path()).map_err(err)?;
-                }
-            }
-            std::fs::remove_dir(&self.dir).map_err(err)?;
-        } else {
-            std::fs::rename(&self.dir, &self.target).map_err(err)?;
-        }
-        self.committed = true;
-        texsyn::image_io::forget_pending_output(&self.dir);
-        Ok(())
-    }
-}
-
-/// Staging folders of runs that were killed (Ctrl-C does not run destructors): those
-/// whose process is gone are removed. Only where that can be told (`/proc`, Linux).
-fn remove_stale_staging(parent: &Path, prefix: &str) {
-    let proc = Path::new("/proc/self");
-    if !proc.exists() {
-        return;
-    }
-    let Ok(entries) = std::fs::read_dir(parent) else {
-        return;
-    };
-    for entry in entries.flatten() {
-        let name = entry.file_name();
-        let Some(pid) = name
-            .to_str()
-            .and_then(|n| n.strip_prefix(prefix))
-            .and_then(|p| p.parse::<u32>().ok())
-        else {
-            continue;
-        };
-        if !Path::new("/proc").join(pid.to_string()).exists() {
-            let _ = std::fs::remove_dir_all(entry.path());
-        }
-    }
-}
-
-impl Drop for Staging {
-    fn drop(&mut self) {
-        if !self.committed {
-            let _ = std::fs::remove_dir_all(&self.dir);
-            texsyn::image_io::forget_pending_output(&self.dir);
-        }
-    }
-}
-
-enum Sink {
-    Folder(PathBuf),
-    Gif(PathBuf, Vec<image::RgbaImage>),
-    Apng(PathBuf, Vec<image::RgbaImage>),
-}
-
 pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
     let dt = super::time_step(args.dt)?;
     let ext = args
@@ -478,7 +274,7 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
         inputs.push(("flow file", f));
     }
     inputs.extend(args.mesh.as_deref().map(|m| ("mesh", m)));
-    inputs.extend(super::field::FieldSpec::input(&args.field));
+    inputs.extend(super::field::FieldSpec::input(&args.field.field));
     super::check_outputs_not_inputs(&[&args.output], &inputs)?;
     let mut staging = None;
     let mut sink = if ext.as_deref() == Some("gif") {
@@ -517,7 +313,7 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
     // from the arguments because the options are checked before the analysis and the
     // atlas that the parameters need.
     let constant_j =
-        args.mesh.is_none() && matches!(args.field, None | Some(FieldSpec::Constant { .. }));
+        args.mesh.is_none() && matches!(args.field.field, None | Some(FieldSpec::Constant { .. }));
     // An explicit --levels below keep-look's least (3) asks for the texture carried.
     let keep_look = args.keep_look
         || (constant_j
@@ -645,7 +441,7 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
     let mut params = SynthParams {
         width: args.size[0],
         height: args.size[1],
-        seed: args.seed,
+        seed: args.seed.seed,
         ..SynthParams::default()
     };
     if let Some(mesh_path) = &args.mesh {
@@ -658,7 +454,7 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
         let prepared = texsyn::surface::pipeline::prepare(&mesh, levels, &opts)?;
         params = texsyn::surface::pipeline::atlas_params(&prepared, &params);
         surface = Some(prepared);
-    } else if let Some(f) = &args.field {
+    } else if let Some(f) = &args.field.field {
         params.field = Some(f.resolve([0, 0], params.width, params.height)?);
     }
     let (w, h) = (params.width, params.height);
@@ -933,78 +729,4 @@ pub fn displacement(velocity: &[[f32; 2]], dt: f32) -> Vec<[f32; 2]> {
 fn median(v: &mut [Duration]) -> Duration {
     v.sort();
     v.get(v.len() / 2).copied().unwrap_or_default()
-}
-
-/// An animated PNG (25 frames per second, looping), written atomically.
-fn write_apng(path: &Path, frames: &[image::RgbaImage]) -> CliResult<()> {
-    let Some(first) = frames.first() else {
-        return Err(fail("no frames to write"));
-    };
-    let err = |e: png::EncodingError| texsyn::Error::Write {
-        path: path.to_path_buf(),
-        reason: e.to_string(),
-    };
-    texsyn::image_io::write_atomic(path, |w| {
-        let mut enc = png::Encoder::new(w, first.width(), first.height());
-        enc.set_color(png::ColorType::Rgba);
-        enc.set_depth(png::BitDepth::Eight);
-        enc.set_animated(frames.len() as u32, 0).map_err(err)?;
-        enc.set_frame_delay(1, 25).map_err(err)?;
-        let mut writer = enc.write_header().map_err(err)?;
-        for f in frames {
-            writer.write_image_data(f.as_raw()).map_err(err)?;
-        }
-        writer.finish().map_err(err)
-    })?;
-    Ok(())
-}
-
-/// An animation is kept in memory until it is encoded: refuse one that cannot be (GIF
-/// sides over 65535 pixels) or that would not fit in the memory available, at its first
-/// frame rather than with an allocation failure hundreds of frames later.
-fn check_animation_fits(path: &Path, width: u32, height: u32, frames: u64) -> CliResult<()> {
-    let gif = path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("gif"));
-    if gif && width.max(height) > 65535 {
-        return Err(fail(format!(
-            "-o {}: GIF frames are at most 65535 pixels a side and these are {width}x{height}; \
-             write an animated PNG (.png) or a folder of frames",
-            path.display()
-        )));
-    }
-    let need = frames * width as u64 * height as u64 * 4;
-    // Half of what is available: the encoder needs room of its own.
-    let have = texsyn::analysis::available_memory().map(|m| m / 2);
-    if have.is_some_and(|have| need > have) {
-        return Err(fail(format!(
-            "-o {}: an animation of {frames} frames of {width}x{height} is kept in memory until \
-             it is encoded, about {:.1} GiB, more than this machine has free; write a folder of \
-             frames (-o DIR), keep fewer (--every K), or make them smaller",
-            path.display(),
-            need as f64 / (1u64 << 30) as f64
-        )));
-    }
-    Ok(())
-}
-
-fn write_gif(path: &Path, frames: &[image::RgbaImage]) -> CliResult<()> {
-    texsyn::image_io::write_atomic(path, |w| {
-        let mut enc = image::codecs::gif::GifEncoder::new_with_speed(w, 10);
-        enc.set_repeat(image::codecs::gif::Repeat::Infinite)
-            .map_err(|e| texsyn::Error::Write {
-                path: path.to_path_buf(),
-                reason: e.to_string(),
-            })?;
-        for f in frames {
-            let frame =
-                image::Frame::from_parts(f.clone(), 0, 0, image::Delay::from_numer_denom_ms(40, 1));
-            enc.encode_frame(frame).map_err(|e| texsyn::Error::Write {
-                path: path.to_path_buf(),
-                reason: e.to_string(),
-            })?;
-        }
-        Ok(())
-    })?;
-    Ok(())
 }

@@ -9,7 +9,7 @@ use texsyn::analysis::{self, Analysis, AnalysisOptions};
 
 use super::{
     channels_name, check_output_dir, fmt_bytes, fmt_duration, AppearanceArgs, CliResult, TileArgs,
-    Ui,
+    Ui, ADVANCED,
 };
 
 /// Analyse an exemplar image and save the analysis file (skips the analysis in synth)
@@ -29,7 +29,8 @@ pub struct AnalyzeArgs {
     pub output: PathBuf,
 
     /// Similarity-set size, including the pixel itself (1..=8)
-    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u32).range(1..=analysis::MAX_K as i64))]
+    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u32).range(1..=analysis::MAX_K as i64),
+          help_heading = ADVANCED, hide_short_help = true)]
     pub k: u32,
 
     #[command(flatten)]
@@ -40,7 +41,7 @@ pub struct AnalyzeArgs {
 
     /// Similarity-set members lie at least this many pixels from the pixel itself
     #[arg(long, value_name = "R", default_value_t = AnalysisOptions::default().exclusion_radius,
-          allow_hyphen_values = true)]
+          allow_hyphen_values = true, help_heading = ADVANCED, hide_short_help = true)]
     pub exclusion: u32,
 
     /// Worker threads (0 = all cores; at most 256)

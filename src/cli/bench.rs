@@ -46,55 +46,22 @@ pub struct BenchArgs {
     #[arg(long, value_name = "W", default_value_t = 2, value_parser = clap::value_parser!(u32).range(0..=10_000))]
     pub warmup: u32,
 
-    /// Random seed of the syntheses
-    #[arg(long, value_name = "S", default_value_t = SynthParams::default().seed,
-          allow_hyphen_values = true, value_parser = super::parse_seed)]
-    pub seed: u32,
+    #[command(flatten)]
+    pub seed: super::SeedArg,
 
-    /// Correction passes on every level but the finest (0..=16; at most 2 on levels whose
-    /// neighbourhood spans the exemplar)
-    #[arg(long, value_name = "P", default_value_t = SynthParams::default().passes,
-          value_parser = clap::value_parser!(u32).range(0..=16))]
-    pub passes: u32,
+    #[command(flatten)]
+    pub schedule: super::ScheduleArgs,
 
-    /// Correction passes on the second-finest level (0..=16). Default: --passes, but at
-    /// most 2 in an isometric synthesis (no --field) from an exemplar of 256x256 pixels or
-    /// more, and at most 3 from a smaller one (also along --field; not with
-    /// --feature-mask): that level is most of the GPU time (measured:
-    /// about a fifth less GPU time, texture energy +1-2% at full resolution, the same at
-    /// half and quarter)
-    #[arg(long, value_name = "P", value_parser = clap::value_parser!(u32).range(0..=16))]
-    pub second_finest_passes: Option<u32>,
-
-    /// Correction passes on the finest level (0..=16)
-    #[arg(long, value_name = "P", default_value_t = SynthParams::default().finest_passes,
-          value_parser = clap::value_parser!(u32).range(0..=16))]
-    pub finest_passes: u32,
-
-    /// Score the similarity-set candidates on every N-th correction pass of a level
-    /// (1..=16; 1 = every pass, as in the paper); the other passes score only the
-    /// coherent candidates. 2 takes about a fifth off an isometric synthesis's GPU time
-    /// for a texture energy within 0.3% (README, Measured figures)
-    #[arg(long, value_name = "N", default_value_t = SynthParams::default().sets_every,
-          value_parser = clap::value_parser!(u32).range(1..=16))]
-    pub sets_every: u32,
-
-    /// Neighbourhood distance: projected, full or mixed
-    #[arg(long, value_name = "MODE", default_value = "mixed", value_parser = super::parse_distance)]
-    pub distance: texsyn::DistanceMode,
-
-    /// Time standalone textures (as `texsyn synth --standalone`): thin margins instead of
-    /// the exact windows of the unbounded texture
+    /// Time standalone textures (as `texsyn synth --standalone`)
     #[arg(long)]
     pub standalone: bool,
 
-    /// Anisometric synthesis along a field (same SPEC as `texsyn synth --field`; a map
-    /// from a file must have every benchmarked size, so give a single --sizes with it)
+    /// Anisometric synthesis along a field (as `texsyn synth --field`; give a single
+    /// --sizes with a map from a file: it must have the benchmarked size)
     #[arg(long, value_name = "SPEC", value_parser = super::field::parse_field)]
     pub field: Option<super::field::FieldSpec>,
 
-    /// Also time every dispatch on its own (submit + wait each; median over --runs) and
-    /// print, per size, the time by level and pass kind
+    /// Also time every dispatch on its own and print the time by level and pass kind
     #[arg(long)]
     pub per_pass: bool,
 }
@@ -238,20 +205,20 @@ pub fn run(ui: &Ui, args: BenchArgs) -> CliResult<()> {
     ))?;
     ui.out(format!(
         "synthesis: {} passes ({} at the second-finest level, {} at the finest), similarity sets every {}, {:?} distance, {}, seed {}; {} warm-up + {} timed runs per size; GPU = submit + wait, no read-back",
-        args.passes,
-        args.second_finest_passes.unwrap_or_else(|| {
+        args.schedule.passes,
+        args.schedule.second_finest_passes.unwrap_or_else(|| {
             texsyn::passes::plan::default_second_finest_passes(
-                args.passes,
+                args.schedule.passes,
                 args.field.is_some() || file_field.is_some(),
                 false,
                 texsyn::passes::plan::ExemplarShape::of(synthesizer.analysis()),
             )
         }),
-        args.finest_passes,
-        args.sets_every,
-        args.distance,
+        args.schedule.finest_passes,
+        args.schedule.sets_every,
+        args.schedule.distance,
         if args.standalone { "standalone textures" } else { "exact windows" },
-        args.seed,
+        args.seed.seed,
         args.warmup,
         args.runs
     ))?;
@@ -274,12 +241,12 @@ pub fn run(ui: &Ui, args: BenchArgs) -> CliResult<()> {
         let params = SynthParams {
             width: w,
             height: h,
-            seed: args.seed,
-            passes: args.passes,
-            second_finest_passes: args.second_finest_passes,
-            finest_passes: args.finest_passes,
-            sets_every: args.sets_every,
-            distance: args.distance,
+            seed: args.seed.seed,
+            passes: args.schedule.passes,
+            second_finest_passes: args.schedule.second_finest_passes,
+            finest_passes: args.schedule.finest_passes,
+            sets_every: args.schedule.sets_every,
+            distance: args.schedule.distance,
             standalone: args.standalone,
             field: match (&file_field, &args.field) {
                 (Some(f), _) => Some(f.clone()),

@@ -48,6 +48,8 @@ pub struct EvalArgs {
     #[command(flatten)]
     pub tile: TileArgs,
 
+    /// With --coords: how well the texture follows this field (as `synth --field`)
+    ///
     /// The field the image was synthesized along (same SPEC as `texsyn synth --field`,
     /// window 0,0): with --coords, reports how well the texture follows it ("jacobian":
     /// fraction of pixels whose finite-difference Jacobian is within --tolerance of the
@@ -56,11 +58,17 @@ pub struct EvalArgs {
           requires = "coords")]
     pub field: Option<super::field::FieldSpec>,
 
-    /// Relative Frobenius tolerance of the Jacobian figures
-    #[arg(long, value_name = "T", default_value_t = 0.15, allow_hyphen_values = true,
-          value_parser = parse_positive::<f64>)]
-    pub tolerance: f64,
+    /// With --coords: how the exemplar's features survive (as `synth --feature-mask`)
+    ///
+    /// Feature mask of the exemplar (as for `texsyn synth --feature-mask`): with --coords,
+    /// reports how the features survive ("features": share of the resynthesized mask in
+    /// fragments under 20 px against the exemplar mask's share, coverage, and the 7x7
+    /// texture energy of the resynthesized mask)
+    #[arg(long, value_name = "FILE", requires = "coords")]
+    pub feature_mask: Option<PathBuf>,
 
+    /// Temporal figures of a folder of advected frames along this flow (as `advect --flow`)
+    ///
     /// Temporal coherence of an advected sequence: IMAGE is then a folder of frames
     /// (frame_00000.png, ... as `texsyn advect` writes them, consecutive) advected along
     /// this flow (same SPEC as `texsyn advect --flow`); reports the flow-warped and plain
@@ -68,8 +76,7 @@ pub struct EvalArgs {
     /// warped change exceeds 0.15 of full scale, per pair of frames), texture energy per
     /// --energy-every frames and the sharpness (high-frequency energy relative to the
     /// exemplar's) per frame. 2D frames only: the frames of `advect --mesh` are renders
-    /// (two views side by side) that a 2D flow does not move; advect prints their figures,
-    /// measured over the atlas
+    /// that a 2D flow does not move; advect prints their figures, measured over the atlas
     #[arg(long, value_name = "SPEC", value_parser = super::advect::parse_flow,
           conflicts_with_all = ["coords", "field"])]
     pub flow: Option<super::advect::FlowArg>,
@@ -83,25 +90,31 @@ pub struct EvalArgs {
     )]
     pub dt: f64,
 
-    /// With --flow: texture energy (of 5x5 windows, as `texsyn advect` prints it; plain
-    /// eval's is of 7x7) on the first frame, every K-th from frame 0 and the last; 0: the
-    /// first and the last only
-    #[arg(long, value_name = "K", default_value_t = 10, requires = "flow")]
-    pub energy_every: usize,
-
-    /// Feature mask of the exemplar (as for `texsyn synth --feature-mask`): with --coords,
-    /// reports how the features survive ("features": share of the resynthesized mask in
-    /// fragments under 20 px against the exemplar mask's share, coverage, and the 7x7
-    /// texture energy of the resynthesized mask)
-    #[arg(long, value_name = "FILE", requires = "coords")]
-    pub feature_mask: Option<PathBuf>,
-
+    /// Also write where the texture energy lies, as a grey image of the output's size
+    ///
     /// Also write where the full-resolution texture energy lies, as a grey image of the
     /// output's size (each pixel: the energy of the 7x7 window centred on it; the
     /// 3-pixel border, which has no full window, is black)
     #[arg(long, value_name = "FILE.png", conflicts_with = "flow")]
     pub energy_map: Option<PathBuf>,
 
+    /// Relative Frobenius tolerance of the Jacobian figures
+    #[arg(long, value_name = "T", default_value_t = 0.15, allow_hyphen_values = true,
+          value_parser = parse_positive::<f64>, help_heading = super::ADVANCED,
+          hide_short_help = true)]
+    pub tolerance: f64,
+
+    /// With --flow: texture energy every K-th frame (0: the first and the last only)
+    ///
+    /// With --flow: texture energy (of 5x5 windows, as `texsyn advect` prints it; plain
+    /// eval's is of 7x7) on the first frame, every K-th from frame 0 and the last; 0: the
+    /// first and the last only
+    #[arg(long, value_name = "K", default_value_t = 10, requires = "flow",
+          help_heading = super::ADVANCED, hide_short_help = true)]
+    pub energy_every: usize,
+
+    /// Energy shown as white in --energy-map
+    ///
     /// Energy shown as white in --energy-map (a mean squared difference per channel;
     /// fixed, so maps of different images compare)
     #[arg(
@@ -110,7 +123,9 @@ pub struct EvalArgs {
         default_value_t = 0.02,
         requires = "energy_map",
         allow_hyphen_values = true,
-        value_parser = parse_positive::<f32>
+        value_parser = parse_positive::<f32>,
+        help_heading = super::ADVANCED,
+        hide_short_help = true
     )]
     pub energy_scale: f32,
 }

@@ -7,6 +7,7 @@ mod analyze;
 mod bench;
 mod eval;
 mod field;
+mod frames;
 mod interrupt;
 mod surface;
 mod synth;
@@ -59,6 +60,84 @@ pub enum Command {
     Advect(advect::AdvectArgs),
 }
 
+/// Help heading of the options that shape the output's content.
+pub const LOOK: &str = "Look";
+/// Help heading of the options that say what the output is and where it goes.
+pub const OUTPUT: &str = "Output";
+/// Help heading of the options that guide the synthesis (fields, masks, the exemplar).
+pub const CONTROLS: &str = "Controls";
+/// Help heading of the tuning knobs, shown by `--help` only.
+pub const ADVANCED: &str = "Advanced";
+
+/// `--seed S`.
+#[derive(Args, Debug, Clone, Copy)]
+pub struct SeedArg {
+    /// Random seed (0..=4294967295); each seed gives a different texture
+    #[arg(long, value_name = "S", default_value_t = texsyn::SynthParams::default().seed,
+          allow_hyphen_values = true, value_parser = parse_seed)]
+    pub seed: u32,
+}
+
+/// `--field SPEC`: a Jacobian field to synthesize along.
+#[derive(Args, Debug, Clone)]
+pub struct FieldArg {
+    /// Anisometric synthesis along a Jacobian field (SPEC: see --help)
+    #[arg(long, value_name = "SPEC", value_parser = field::parse_field,
+          long_help = field::FIELD_HELP)]
+    pub field: Option<field::FieldSpec>,
+}
+
+/// The pass schedule of a synthesis: `--passes`, `--second-finest-passes`,
+/// `--finest-passes`, `--sets-every`, `--distance` (tuning knobs: `--help` only).
+#[derive(Args, Debug, Clone)]
+pub struct ScheduleArgs {
+    /// Correction passes on every level but the finest (0..=16)
+    ///
+    /// Correction passes on every level but the finest (0..=16; each is 4 subpasses). The
+    /// two coarsest corrected levels, whose neighbourhood spans the exemplar, get at most 2
+    #[arg(long, value_name = "P", default_value_t = texsyn::SynthParams::default().passes,
+          value_parser = clap::value_parser!(u32).range(0..=16),
+          help_heading = ADVANCED, hide_short_help = true)]
+    pub passes: u32,
+
+    /// Correction passes on the second-finest level (0..=16)
+    ///
+    /// Correction passes on the second-finest level (0..=16). Default: --passes, but at
+    /// most 2 in an isometric synthesis from an exemplar of 256x256 pixels or more, and at
+    /// most 3 from a smaller one without a --feature-mask: that level is most of the GPU time
+    #[arg(long, value_name = "P", value_parser = clap::value_parser!(u32).range(0..=16),
+          help_heading = ADVANCED, hide_short_help = true)]
+    pub second_finest_passes: Option<u32>,
+
+    /// Correction passes on the finest level (0..=16)
+    ///
+    /// Correction passes on the finest level (0..=16). With 0 the finest level is the
+    /// coherent upsampling of the next coarser one, which costs less for nearly the same
+    /// texture; with --no-seam-blend, 1 gives a lower texture energy
+    #[arg(long, value_name = "P", default_value_t = texsyn::SynthParams::default().finest_passes,
+          value_parser = clap::value_parser!(u32).range(0..=16),
+          help_heading = ADVANCED, hide_short_help = true)]
+    pub finest_passes: u32,
+
+    /// Score the similarity sets on every N-th correction pass only (1..=16)
+    ///
+    /// Score the similarity-set candidates on every N-th correction pass of a level
+    /// (1..=16; 1 = every pass, as in the paper); the other passes score only the coherent
+    /// candidates. 2 is faster for nearly the same texture
+    #[arg(long, value_name = "N", default_value_t = texsyn::SynthParams::default().sets_every,
+          value_parser = clap::value_parser!(u32).range(1..=16),
+          help_heading = ADVANCED, hide_short_help = true)]
+    pub sets_every: u32,
+
+    /// Neighbourhood distance: projected (8D), full (32D) or mixed
+    ///
+    /// Neighbourhood distance: projected (the paper's 8D), full (32D) or mixed (full on the
+    /// coarse levels, projected on the finest)
+    #[arg(long, value_name = "MODE", default_value = "mixed", value_parser = parse_distance,
+          help_heading = ADVANCED, hide_short_help = true)]
+    pub distance: texsyn::DistanceMode,
+}
+
 /// `--tileable` / `--no-tileable`: force either, or (neither) detect from the seams.
 #[derive(Args, Debug, Clone, Copy, Default)]
 pub struct TileArgs {
@@ -81,44 +160,55 @@ impl TileArgs {
     }
 }
 
-/// `--feature-mask FILE`, `--feature-weight W`, `--appearance color|neighborhood`: how the
-/// appearance vectors of an analysed image are formed.
+/// `--feature-mask FILE` and its knobs (`--feature-weight`, `--feature-clamp`,
+/// `--feature-mode`), `--appearance color|neighborhood`: how the appearance vectors of an
+/// analysed image are formed.
 #[derive(Args, Debug, Clone, Default)]
 pub struct AppearanceArgs {
+    /// Feature mask of the exemplar's size (bright = feature, e.g. mortar or cracks)
+    ///
     /// Binary feature mask of the exemplar's size (any image format; bright = feature,
     /// e.g. mortar or cracks): its clamped signed-distance field joins the appearance
-    /// vectors so synthesis keeps those structures whole
+    /// vectors so that synthesis keeps those structures whole
     #[arg(long, value_name = "FILE")]
     pub feature_mask: Option<PathBuf>,
 
+    /// Weight of the feature channel in [0, 100]
+    ///
     /// Weight of the feature channel in [0, 100]: 1 gives it as much variance as all
     /// colour channels together; larger values favour structure over colour (with
-    /// --feature-mode both, the default, the sets get it and the appearance vectors
-    /// 1/128 of it) [default: 16; with --feature-mode appearance: 1]
+    /// --feature-mode both, the sets get it and the appearance vectors 1/128 of it)
+    /// [default: 16; with --feature-mode appearance: 1]
     #[arg(long, value_name = "W", requires = "feature_mask", allow_hyphen_values = true,
-          value_parser = parse_feature_weight)]
+          value_parser = parse_feature_weight, help_heading = ADVANCED, hide_short_help = true)]
     pub feature_weight: Option<f32>,
 
+    /// Clamp of the feature mask's signed distance in [0.5, 4096] pixels
+    ///
     /// Clamp of the feature mask's signed distance in [0.5, 4096] pixels of the analysed
     /// exemplar: 1 says inside, outside or on the boundary; larger values also say how
     /// deep inside a region a pixel lies, which costs colour fidelity [default: 1]
     #[arg(long, value_name = "PX", requires = "feature_mask", allow_hyphen_values = true,
-          value_parser = parse_feature_clamp)]
+          value_parser = parse_feature_clamp, help_heading = ADVANCED, hide_short_help = true)]
     pub feature_clamp: Option<f32>,
 
+    /// Where the feature mask acts: both, appearance or sets
+    ///
     /// Where the feature mask acts: both (the similarity sets, and lightly the appearance
-    /// vectors: both the colour energy and the breakage of features fell on every
-    /// exemplar measured with a clean mask), appearance (the paper: in the appearance
-    /// vectors the synthesis matches; structures stay the most whole, colour energy rises;
-    /// the mode for structure the colours do not show) or sets (in the similarity sets
+    /// vectors), appearance (the paper: in the appearance vectors; structures stay the
+    /// most whole, for structure the colours do not show) or sets (the similarity sets
     /// only: the colours match as without a mask) [default: both]
-    #[arg(long, value_name = "MODE", requires = "feature_mask", value_parser = parse_feature_mode)]
+    #[arg(long, value_name = "MODE", requires = "feature_mask", value_parser = parse_feature_mode,
+          help_heading = ADVANCED, hide_short_help = true)]
     pub feature_mode: Option<texsyn::analysis::FeatureMode>,
 
+    /// Appearance vector: neighborhood (the paper's) or color
+    ///
     /// Appearance vector: neighborhood (5x5 neighbourhoods reduced to 8D, the paper's
-    /// appearance space) or color (the pixel colour alone, for comparison; same runtime)
+    /// appearance space) or color (the pixel colour alone, for comparison)
     /// [default: neighborhood; with an analysis file, the file's]
-    #[arg(long, value_name = "SPACE", value_parser = parse_appearance)]
+    #[arg(long, value_name = "SPACE", value_parser = parse_appearance,
+          help_heading = ADVANCED, hide_short_help = true)]
     pub appearance: Option<texsyn::analysis::AppearanceSpace>,
 }
 
@@ -198,9 +288,8 @@ pub fn parse_appearance(s: &str) -> Result<texsyn::analysis::AppearanceSpace, St
 /// Leaves `value` (a device, an uploaded exemplar) to the end of the process instead of
 /// dropping it. Called on a command's success path, when only the exit is left: the OS
 /// takes back a device and its memory at once, while the destructors tear down the
-/// driver and free the tables piece by piece (lavapipe: 8-10 ms from the output's rename
-/// to the exit for a 128 px exemplar, 33-45 ms for a 512 px one, against 2.5-4 ms
-/// without them; measured under strace, 2026-12-03).
+/// driver and free the tables piece by piece, which takes longer than the work itself
+/// for small outputs.
 pub fn leave_to_exit<T>(value: T) {
     std::mem::forget(value);
 }
@@ -323,6 +412,12 @@ impl Ui {
     /// frame is used).
     pub fn load_exemplar(&self, path: &Path) -> texsyn::Result<texsyn::Exemplar> {
         let ex = texsyn::image_io::load_exemplar(path)?;
+        self.warn_if_animation(path);
+        Ok(ex)
+    }
+
+    /// A warning when the image at `path` is an animation: texsyn uses its first frame.
+    pub fn warn_if_animation(&self, path: &Path) {
         if let Some(n @ 2..) = texsyn::image_io::animation_frames(path) {
             self.info(format!(
                 "warning: {} is an animation of {n} frames; texsyn uses its first frame \
@@ -330,7 +425,6 @@ impl Ui {
                 path.display()
             ));
         }
-        Ok(ex)
     }
 
     /// A result on stdout (never silenced); a closed stdout is an error, not a panic.

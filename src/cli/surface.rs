@@ -15,10 +15,10 @@ use texsyn::surface::seams;
 use texsyn::surface::tangent_field::{DirectionSource, ScaleSource, DIRECTION_HELP};
 use texsyn::{AnalysisOptions, SynthParams};
 
-use super::synth::{read_source, Source};
+use super::synth::{read_source, Magnified, Source};
 use super::{
     check_output_dir, fail, fmt_duration, parse_coherence, parse_randomness, CliResult, Randomness,
-    TileArgs, Ui,
+    TileArgs, Ui, ADVANCED, CONTROLS, LOOK, OUTPUT,
 };
 
 /// Texture a mesh: synthesize in its texture atlas, write a textured .glb
@@ -38,94 +38,112 @@ pub struct SurfaceArgs {
     pub exemplar: PathBuf,
 
     /// Output .glb (written atomically once everything succeeded)
-    #[arg(short, long, value_name = "OUT.glb")]
+    #[arg(short, long, value_name = "OUT.glb", help_heading = OUTPUT)]
     pub output: PathBuf,
 
     /// Atlas side in texels (8 to 16384; small meshes need more texels than charts)
     #[arg(long, value_name = "N", default_value_t = 1024,
-          value_parser = clap::value_parser!(u32).range(8..=16384))]
+          value_parser = clap::value_parser!(u32).range(8..=16384), help_heading = OUTPUT)]
     pub atlas_size: u32,
 
-    /// World units per exemplar texel (of the full-resolution exemplar, also with
-    /// --magnify): a number, or linear:AX,AY,AZ:S_MIN:S_MAX to vary it along an axis.
-    /// Default: one exemplar texel per atlas texel on average
-    #[arg(long, value_name = "S|SPEC", value_parser = parse_scale, allow_hyphen_values = true)]
-    pub texel_size: Option<ScaleSource>,
-
-    /// Where the exemplar's x axis goes on the surface (see --help)
-    #[arg(long, value_name = "SPEC", default_value = "up", value_parser = parse_direction,
-          long_help = DIRECTION_HELP)]
-    pub field: DirectionArg,
-
-    /// Always build a new atlas (default: keep a usable TEXCOORD_0)
-    #[arg(long, conflicts_with = "keep_uvs")]
-    pub new_atlas: bool,
-
-    /// Keep the mesh's TEXCOORD_0, or fail if it is not a usable atlas
-    #[arg(long)]
-    pub keep_uvs: bool,
-
     /// Render the textured mesh from several views into this PNG
-    #[arg(long, value_name = "PNG")]
+    #[arg(long, value_name = "PNG", help_heading = OUTPUT)]
     pub render: Option<PathBuf>,
 
     /// Views in the render (orbiting the mesh, side by side; 1 to 16)
     #[arg(long, default_value_t = 4, requires = "render",
-          value_parser = clap::value_parser!(u32).range(1..=16))]
+          value_parser = clap::value_parser!(u32).range(1..=16), help_heading = OUTPUT)]
     pub views: u32,
+
     /// Size of each rendered view in pixels (16 to 4096)
     #[arg(long, default_value_t = 384, requires = "render",
-          value_parser = clap::value_parser!(u32).range(16..=4096))]
+          value_parser = clap::value_parser!(u32).range(16..=4096), help_heading = OUTPUT)]
     pub view_size: u32,
 
     /// Also write the raw colour atlas to this image
-    #[arg(long, value_name = "PNG")]
+    #[arg(long, value_name = "PNG", help_heading = OUTPUT)]
     pub atlas_out: Option<PathBuf>,
 
+    #[command(flatten, next_help_heading = LOOK)]
+    pub seed: super::SeedArg,
+
+    /// World units per exemplar texel: S, or linear:AX,AY,AZ:S_MIN:S_MAX
+    ///
+    /// World units per exemplar texel (of the full-resolution exemplar, also with
+    /// --magnify): a number, or linear:AX,AY,AZ:S_MIN:S_MAX to vary it along an axis.
+    /// Default: one exemplar texel per atlas texel on average
+    #[arg(long, value_name = "S|SPEC", value_parser = parse_scale, allow_hyphen_values = true,
+          help_heading = LOOK)]
+    pub texel_size: Option<ScaleSource>,
+
+    /// Where the exemplar's x axis goes on the surface (SPEC: see --help)
+    #[arg(long, value_name = "SPEC", default_value = "up", value_parser = parse_direction,
+          long_help = DIRECTION_HELP, help_heading = LOOK)]
+    pub field: DirectionArg,
+
+    /// Magnify 2, 4 or 8 times (the atlas texture is that many times larger)
+    ///
     /// Magnify 2, 4 or 8 times: synthesize with a downsampled exemplar and read colours
     /// from the full one (the atlas texture is that many times larger; renders magnify
     /// in the fragment shader)
-    #[arg(long, value_name = "F", value_parser = super::synth::parse_magnify)]
+    #[arg(long, value_name = "F", value_parser = super::synth::parse_magnify, help_heading = LOOK)]
     pub magnify: Option<u32>,
 
+    /// Jitter randomness, one value or one per level, coarsest first (as for synth)
+    #[arg(long, value_name = "R|R0,R1,...", value_parser = parse_randomness, help_heading = LOOK)]
+    pub randomness: Option<Randomness>,
+
+    /// Tangent-space normal map aligned with the exemplar (green = y up)
+    ///
     /// Tangent-space normal map aligned with the exemplar, embedded as the material's
     /// normal texture (rotated with the field). Green is y up (OpenGL, glTF, Blender),
     /// unless --normal-green-down
-    #[arg(long, value_name = "IMAGE")]
+    #[arg(long, value_name = "IMAGE", help_heading = MATERIAL)]
     pub normal_map: Option<PathBuf>,
 
+    /// The --normal-map has green = y down (DirectX)
+    ///
     /// The --normal-map has green = y down (DirectX convention); the embedded texture is
     /// converted to glTF's green up
-    #[arg(long, requires = "normal_map")]
+    #[arg(long, requires = "normal_map", help_heading = MATERIAL)]
     pub normal_green_down: bool,
 
+    /// Roughness map aligned with the exemplar (grey; red channel used)
+    ///
     /// Roughness map aligned with the exemplar (grey; red channel used), embedded as the
     /// material's metallic-roughness texture (roughness in green, metallic 0)
-    #[arg(long, value_name = "IMAGE")]
+    #[arg(long, value_name = "IMAGE", help_heading = MATERIAL)]
     pub roughness_map: Option<PathBuf>,
 
-    /// Ambient-occlusion map aligned with the exemplar (grey; red channel used),
-    /// embedded as the material's occlusion texture
-    #[arg(long, value_name = "IMAGE")]
+    /// Ambient-occlusion map aligned with the exemplar (grey; red channel used)
+    #[arg(long, value_name = "IMAGE", help_heading = MATERIAL)]
     pub occlusion_map: Option<PathBuf>,
 
-    /// Random seed (as for synth)
-    #[arg(long, default_value_t = SynthParams::default().seed,
-          allow_hyphen_values = true, value_parser = super::parse_seed)]
-    pub seed: u32,
-    /// Jitter randomness, one value or one per level, coarsest first (as for synth)
-    #[arg(long, value_name = "R|R0,R1,...", value_parser = parse_randomness)]
-    pub randomness: Option<Randomness>,
-    /// Correction passes on every level but the finest (as for synth)
-    #[arg(long, default_value_t = SynthParams::default().passes, value_parser = clap::value_parser!(u32).range(0..=16))]
-    pub passes: u32,
-    /// Bias towards coherent candidates in [0, 4] (as for synth)
-    #[arg(long, value_name = "C", default_value_t = SynthParams::default().coherence, value_parser = parse_coherence)]
-    pub coherence: f32,
+    /// Always build a new atlas (default: keep a usable TEXCOORD_0)
+    #[arg(long, conflicts_with = "keep_uvs", help_heading = CONTROLS)]
+    pub new_atlas: bool,
 
-    #[command(flatten)]
+    /// Keep the mesh's TEXCOORD_0, or fail if it is not a usable atlas
+    #[arg(long, help_heading = CONTROLS)]
+    pub keep_uvs: bool,
+
+    #[command(flatten, next_help_heading = CONTROLS)]
     pub tile: TileArgs,
+
+    /// Correction passes on every level but the finest (as for synth)
+    #[arg(long, default_value_t = SynthParams::default().passes,
+          value_parser = clap::value_parser!(u32).range(0..=16),
+          help_heading = ADVANCED, hide_short_help = true)]
+    pub passes: u32,
+
+    /// Bias towards coherent candidates in [0, 4] (as for synth)
+    #[arg(long, value_name = "C", default_value_t = SynthParams::default().coherence,
+          value_parser = parse_coherence, help_heading = ADVANCED, hide_short_help = true)]
+    pub coherence: f32,
 }
+
+/// Help heading of the material maps embedded in the glTF.
+const MATERIAL: &str = "Material maps";
 
 fn parse_scale(s: &str) -> Result<ScaleSource, String> {
     s.parse::<ScaleSource>().map_err(|e| e.to_string())
@@ -396,7 +414,7 @@ pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
     let synthesizer = GpuSynthesizer::new(&ctx, Arc::new(analysis))?;
     let upload_time = t.elapsed();
     let base = SynthParams {
-        seed: args.seed,
+        seed: args.seed.seed,
         randomness: args.randomness.map(|r| r.0).unwrap_or_default(),
         passes: args.passes,
         coherence: args.coherence,
@@ -408,7 +426,11 @@ pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
         .map(|(n, normal, _)| ExtraMap {
             // With --magnify: cropped as the exemplar was (to a multiple of the factor).
             pixels: match &hi_res {
-                Some((_, hw, hh, _)) => super::synth::crop_rows(&n.colors, n.width, *hw, *hh),
+                Some(Magnified {
+                    width: hw,
+                    height: hh,
+                    ..
+                }) => super::synth::crop_rows(&n.colors, n.width, *hw, *hh),
                 None => n.colors.clone(),
             },
             normal: *normal,
@@ -420,7 +442,12 @@ pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
     // One synthesis: with --magnify the magnification returns the atlas synthesis too
     // (for the seam figures and the render), with the magnified colours and maps.
     let (synthesis, base_rgba, maps, map_size) = match &hi_res {
-        Some((hi, hw, hh, f)) => {
+        Some(Magnified {
+            pixels: hi,
+            width: hw,
+            height: hh,
+            factor: f,
+        }) => {
             let params = pipeline::atlas_params(&prepared, &base);
             let m = synthesizer
                 .synthesize_magnified_with_maps(&ctx, &params, hi, *hw, *hh, *f, &extra)?;
@@ -489,7 +516,12 @@ pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
         let coords: Vec<[f32; 2]>;
         let jac: Vec<[f32; 4]>;
         let texture = match &hi_res {
-            Some((hi, hw, hh, f)) => {
+            Some(Magnified {
+                pixels: hi,
+                width: hw,
+                height: hh,
+                factor: f,
+            }) => {
                 // Integer exemplar positions are pixel centres in the synthesis.
                 coords = synthesis
                     .coords_f32()

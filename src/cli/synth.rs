@@ -6,7 +6,7 @@ use std::time::{Duration, Instant};
 
 use clap::Args;
 
-use texsyn::analysis::{Analysis, AnalysisOptions, Exemplar, MAX_K};
+use texsyn::analysis::{AnalysisOptions, MAX_K};
 use texsyn::gpu::synth::GpuSynthesizer;
 use texsyn::gpu::GpuContext;
 use texsyn::passes::SynthParams;
@@ -17,7 +17,7 @@ const LONG_SYNTHESIS_PIXELS: u64 = 1 << 22;
 use super::{
     channels_name, check_output_dir, check_output_size, fail, fmt_duration, parse_coherence,
     parse_randomness, parse_size, parse_window, AppearanceArgs, CliResult, Randomness, TileArgs,
-    Ui, WINDOW_HINT,
+    Ui, ADVANCED, CONTROLS, LOOK, OUTPUT, WINDOW_HINT,
 };
 
 /// Synthesize a texture of any size from an exemplar image or analysis file
@@ -33,146 +33,127 @@ pub struct SynthArgs {
     /// Exemplar image, or an analysis file written by `texsyn analyze` (told apart by content)
     pub exemplar: PathBuf,
 
+    /// Output image (png, jpg, bmp, tga, tif, webp, gif, pnm, exr, hdr; `-`: PNG to stdout)
+    ///
     /// Output image; the format follows the extension (png, jpg, bmp, tga, tif, webp, gif,
     /// pnm, exr, hdr; none: png). Written atomically, only once synthesis succeeded. `-`
     /// writes a PNG to standard output
-    #[arg(short, long, value_name = "OUT", value_parser = parse_output)]
+    #[arg(short, long, value_name = "OUT", value_parser = parse_output, help_heading = OUTPUT)]
     pub output: PathBuf,
 
     /// Output size: N (square) or WxH
-    #[arg(long, value_name = "N[xM]", value_parser = parse_size)]
+    #[arg(long, value_name = "N[xM]", value_parser = parse_size, help_heading = OUTPUT)]
     pub size: [u32; 2],
 
-    /// Random seed (0..=4294967295); each seed gives a different texture
-    #[arg(long, value_name = "S", default_value_t = SynthParams::default().seed,
-          allow_hyphen_values = true, value_parser = super::parse_seed)]
-    pub seed: u32,
+    /// Origin of the output window in the infinite texture
+    #[arg(long, value_name = "X,Y", default_value = "0,0", value_parser = parse_window,
+          allow_hyphen_values = true, help_heading = OUTPUT)]
+    pub window: [i32; 2],
 
+    /// Make the output one period of a seamlessly tiling texture (not with --window)
+    #[arg(long, conflicts_with = "window", help_heading = OUTPUT)]
+    pub tileable_output: bool,
+
+    /// Also write the exemplar coordinate of every pixel, as a float EXR (R = x, G = y)
+    #[arg(long, value_name = "FILE.exr", help_heading = OUTPUT)]
+    pub coords_out: Option<PathBuf>,
+
+    /// Resynthesize an exemplar-aligned map (normal, height...) alike; repeatable
+    ///
+    /// Material sets: resynthesize an exemplar-aligned map (normal, height, roughness...)
+    /// through the same coordinates: IN=OUT, repeatable. `normal:IN=OUT` (or an IN whose
+    /// file name contains "normal") marks a tangent-space normal map with green = y up
+    /// (OpenGL, glTF, Blender), `normal-dx:IN=OUT` one with green = y down (DirectX);
+    /// their x, y rotate with the texture along --field. `plain:IN=OUT` forces a plain map
+    #[arg(long, value_name = "[normal:|normal-dx:|plain:]IN=OUT", value_parser = parse_also,
+          help_heading = OUTPUT)]
+    pub also: Vec<AlsoMap>,
+
+    #[command(flatten, next_help_heading = LOOK)]
+    pub seed: super::SeedArg,
+
+    /// Jitter randomness in [0, 2]: one value, or R0,R1,... per level (coarsest first)
+    ///
     /// Jitter randomness in [0, 2]: one value for every level, or R0,R1,... per level
     /// (coarsest first, the last repeats). Default, by the exemplar's smaller side: 0 on
     /// the N finest levels, W on the next, 1 on the coarser ones, with N, W = 1, 1 under
     /// 80 px; 2, 0.5 under 128; 3, 0.75 under 176; 3, 0.25 under 288; 4, 0.25 under 448;
     /// 5, 0.75 from 448
-    #[arg(long, value_name = "R|R0,R1,...", value_parser = parse_randomness)]
+    #[arg(long, value_name = "R|R0,R1,...", value_parser = parse_randomness, help_heading = LOOK)]
     pub randomness: Option<Randomness>,
 
-    /// Copy guard, for exemplars of 176 px and more: first synthesize probes (the window
-    /// at the origin of the output's size, at least 512x512, with these options; outputs
-    /// over 2048 px a side keep the default schedule) with two more still levels, then one,
-    /// and keep the first whose largest verbatim copy is at most F of the exemplar's area
-    /// (0..=1; 0 = the default schedule, no probe). Lower texture energy for most
-    /// exemplars; costs one synthesis per probe, plus the result's when it is another
-    /// window or every probe copies too much. Isometric synthesis only (ignored with
-    /// --field or --randomness). Windows away from the origin are not measured: tiles of
-    /// a larger texture can copy more between them; use 0 for a copy bounded at any size
-    /// and place
-    #[arg(long, value_name = "F", default_value_t = texsyn::gpu::copy_guard::DEFAULT_COPY_BUDGET,
-          allow_hyphen_values = true, value_parser = parse_copy_budget)]
-    pub copy_budget: f32,
-
-    /// Correction passes on every level but the finest (0..=16; each is 4 subpasses). The
-    /// two coarsest corrected levels, whose neighbourhood spans the exemplar, get at most 2
-    #[arg(long, value_name = "P", default_value_t = SynthParams::default().passes,
-          value_parser = clap::value_parser!(u32).range(0..=16))]
-    pub passes: u32,
-
-    /// Correction passes on the second-finest level (0..=16). Default: --passes, but at
-    /// most 2 in an isometric synthesis (no --field) from an exemplar of 256x256 pixels or
-    /// more, and at most 3 from a smaller one (also along --field; not with
-    /// --feature-mask): that level is most of the GPU time (measured:
-    /// about a fifth less GPU time, texture energy +1-2% at full resolution, the same at
-    /// half and quarter)
-    #[arg(long, value_name = "P", value_parser = clap::value_parser!(u32).range(0..=16))]
-    pub second_finest_passes: Option<u32>,
-
-    /// Correction passes on the finest level (0..=16). With 0 (the default) the finest
-    /// level is the coherent upsampling of the next coarser one: a pass there costs about
-    /// 40% more time for a texture energy within 3% and a lower Jacobian fidelity. With
-    /// --no-seam-blend, 1 gives a lower texture energy
-    #[arg(long, value_name = "P", default_value_t = SynthParams::default().finest_passes,
-          value_parser = clap::value_parser!(u32).range(0..=16))]
-    pub finest_passes: u32,
-
-    /// Score the similarity-set candidates on every N-th correction pass of a level
-    /// (1..=16; 1 = every pass, as in the paper); the other passes score only the
-    /// coherent candidates. 2 takes about a fifth off an isometric synthesis's GPU time
-    /// for a texture energy within 0.3% (README, Measured figures)
-    #[arg(long, value_name = "N", default_value_t = SynthParams::default().sets_every,
-          value_parser = clap::value_parser!(u32).range(1..=16))]
-    pub sets_every: u32,
-
-    /// Neighbourhood distance: projected (the paper's 8D), full (32D) or mixed (full on
-    /// the coarse levels, projected on the finest)
-    #[arg(long, value_name = "MODE", default_value = "mixed", value_parser = super::parse_distance)]
-    pub distance: texsyn::DistanceMode,
-
-    /// Similarity-set size used when analysing an image (1..=8; default 2). With an
-    /// analysis file it must match the file's
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=MAX_K as i64))]
-    pub k: Option<u32>,
-
-    /// Bias towards coherent candidates in [0, 4]: other candidates' distances are
-    /// multiplied by 1 + C
-    #[arg(long, value_name = "C", default_value_t = SynthParams::default().coherence, value_parser = parse_coherence)]
-    pub coherence: f32,
-
-    #[command(flatten)]
-    pub tile: TileArgs,
-
-    /// Appearance options used when analysing an image
-    #[command(flatten)]
-    pub appearance: AppearanceArgs,
-
+    /// Synthesize small, render F times larger from the full exemplar (2, 4 or 8)
+    ///
     /// Magnification: analyse the exemplar downsampled F times, synthesize --size, and
     /// render the output F times larger (2, 4 or 8) with the full-resolution exemplar's
     /// colours. Needs an exemplar image (not an analysis file). With --coords-out the
     /// coordinates (per pixel before magnification) are written too; --also maps
     /// (full-resolution, the exemplar's size) are magnified the same way; a
     /// --feature-mask may be given at the exemplar's size (it is downsampled with it)
-    #[arg(long, value_name = "F", value_parser = parse_magnify)]
+    #[arg(long, value_name = "F", value_parser = parse_magnify, help_heading = LOOK)]
     pub magnify: Option<u32>,
 
-    /// Material sets: resynthesize an exemplar-aligned map (normal, height, roughness...)
-    /// through the same coordinates: IN=OUT, repeatable. `normal:IN=OUT` (or an IN whose
-    /// file name contains "normal") marks a tangent-space normal map with green = y up
-    /// (OpenGL, glTF, Blender), `normal-dx:IN=OUT` one with green = y down (DirectX);
-    /// their x, y rotate with the texture along --field. `plain:IN=OUT` forces a plain map
-    #[arg(long, value_name = "[normal:|normal-dx:|plain:]IN=OUT", value_parser = parse_also)]
-    pub also: Vec<AlsoMap>,
+    #[command(flatten, next_help_heading = CONTROLS)]
+    pub field: super::FieldArg,
 
-    /// Anisometric synthesis along a Jacobian field (see the long help: --help)
-    #[arg(long, value_name = "SPEC", value_parser = super::field::parse_field,
-          long_help = super::field::FIELD_HELP)]
-    pub field: Option<super::field::FieldSpec>,
+    #[command(flatten, next_help_heading = CONTROLS)]
+    pub tile: TileArgs,
 
-    /// Make the output one period of a texture that tiles seamlessly (wraps around at its
-    /// edges); not combinable with --window
-    #[arg(long, conflicts_with = "window")]
-    pub tileable_output: bool,
+    /// Appearance options used when analysing an image
+    #[command(flatten, next_help_heading = CONTROLS)]
+    pub appearance: AppearanceArgs,
 
+    #[command(flatten, next_help_heading = ADVANCED)]
+    pub schedule: super::ScheduleArgs,
+
+    /// Similarity-set size when analysing an image (1..=8) [default: 2]
+    ///
+    /// Similarity-set size used when analysing an image (1..=8) [default: 2]. With an
+    /// analysis file it must match the file's
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=MAX_K as i64),
+          help_heading = ADVANCED, hide_short_help = true)]
+    pub k: Option<u32>,
+
+    /// Bias towards coherent candidates in [0, 4]
+    ///
+    /// Bias towards coherent candidates in [0, 4]: other candidates' distances are
+    /// multiplied by 1 + C
+    #[arg(long, value_name = "C", default_value_t = SynthParams::default().coherence,
+          value_parser = parse_coherence, help_heading = ADVANCED, hide_short_help = true)]
+    pub coherence: f32,
+
+    /// Copy guard: the largest verbatim copy allowed, a fraction of the exemplar (0 = off)
+    ///
+    /// Copy guard, for exemplars of 176 px and more: first synthesize probes (the window
+    /// at the origin of the output's size, at least 512x512; outputs over 2048 px a side
+    /// keep the default schedule) with two more still levels, then one, and keep the first
+    /// whose largest verbatim copy is at most F of the exemplar's area (0..=1; 0 = the
+    /// default schedule, no probe). Isometric synthesis only (ignored with --field or
+    /// --randomness). Windows away from the origin are not measured; use 0 for a copy
+    /// bounded at any size and place
+    #[arg(long, value_name = "F", default_value_t = texsyn::gpu::copy_guard::DEFAULT_COPY_BUDGET,
+          allow_hyphen_values = true, value_parser = parse_copy_budget,
+          help_heading = ADVANCED, hide_short_help = true)]
+    pub copy_budget: f32,
+
+    /// A texture of its own, faster, that does not fit together with --window pieces
+    ///
+    /// A texture of its own instead of a window of the infinite texture: each level
+    /// computes 2 pixels of context beyond the output instead of the 4 per correction
+    /// pass that make windows agree. Faster at the same quality, but the output no longer
+    /// fits together with --window pieces (an output too large for one piece is still
+    /// assembled from exact windows); not combinable with --window or --tileable-output
+    #[arg(long, conflicts_with_all = ["window", "tileable_output"],
+          help_heading = ADVANCED, hide_short_help = true)]
+    pub standalone: bool,
+
+    /// Copy the exemplar colour at every coordinate, seams included (no seam blending)
+    ///
     /// Copy the exemplar colour at every coordinate, seams included. By default a pixel
     /// on a patch seam blends in the colours its 4 neighbours predict there (coherent
     /// pixels are exact copies either way)
-    #[arg(long)]
+    #[arg(long, help_heading = ADVANCED, hide_short_help = true)]
     pub no_seam_blend: bool,
-
-    /// Origin of the output window in the infinite texture
-    #[arg(long, value_name = "X,Y", default_value = "0,0", value_parser = parse_window, allow_hyphen_values = true)]
-    pub window: [i32; 2],
-
-    /// A texture of its own instead of a window of the infinite texture: each level
-    /// computes 2 pixels of context beyond the output instead of the 4 per correction
-    /// pass that make windows agree. Faster (GPU time about a fifth less at 256x256 to
-    /// 512x512 on lavapipe) at the same quality, but the output no longer fits together
-    /// with --window pieces (an output too large for one piece is still assembled from
-    /// exact windows); not combinable with --window or --tileable-output
-    #[arg(long, conflicts_with_all = ["window", "tileable_output"])]
-    pub standalone: bool,
-
-    /// Also write the exemplar coordinate of every output pixel, as a float EXR
-    /// (R = x, G = y)
-    #[arg(long, value_name = "FILE.exr")]
-    pub coords_out: Option<PathBuf>,
 }
 
 /// One `--also` map.
@@ -292,22 +273,8 @@ fn split_in_out(rest: &str) -> Result<(&str, &str), String> {
     }
 }
 
-/// What EXEMPLAR held: a finished analysis, or an image still to analyse.
-pub enum Source {
-    Analysis(Analysis),
-    Image(Exemplar),
-}
-
-impl Source {
-    /// Refuses, before any analysis, an exemplar image whose tables (with similarity
-    /// sets of size `k`) the device cannot hold; an analysis file is checked on upload.
-    pub fn check_fits(&self, ctx: &GpuContext, k: u32) -> CliResult<()> {
-        if let Source::Image(ex) = self {
-            texsyn::gpu::synth::check_exemplar_fits(ctx, ex.width, ex.height, k)?;
-        }
-        Ok(())
-    }
-}
+pub use texsyn::session::ExemplarSource as Source;
+pub use texsyn::session::{crop_rows, Magnified};
 
 /// Reads EXEMPLAR (an analysis file or an image, told apart by content) without
 /// analysing it yet; `--k` / `--tileable` must agree with an analysis file.
@@ -317,31 +284,18 @@ pub fn read_source(
     k: Option<u32>,
     tileable: Option<bool>,
 ) -> CliResult<Source> {
-    if !texsyn::session::is_analysis_file(path)? {
-        return ui
-            .load_exemplar(path)
-            .map(Source::Image)
-            .map_err(|e| match e {
-                texsyn::Error::BadImage { path, reason } if reason.starts_with("unrecognized") => {
-                    texsyn::Error::BadImage {
-                        path,
-                        reason: format!(
-                            "{reason}; nor is it a texsyn analysis file (it does not start with \
-                         the analysis-file magic: written by another program, or damaged; \
-                         re-run `texsyn analyze`)"
-                        ),
-                    }
-                    .into()
-                }
-                other => other.into(),
-            });
-    }
     // SAFETY: nothing in this process writes the file, and texsyn replaces analysis
     // files by renaming a new one over them, which leaves this mapping intact. Another
     // program truncating the file in place while the tables are read (the upload and
     // the preparation, well under a second) would make this process fault
     // (`Analysis::load_mapped`); a one-shot command accepts that for the faster start.
-    let analysis = unsafe { Analysis::load_mapped(path)? };
+    let analysis = match unsafe { Source::open_mapped(path)? } {
+        Source::Image(ex) => {
+            ui.warn_if_animation(path);
+            return Ok(Source::Image(ex));
+        }
+        Source::Analysis(a) => a,
+    };
     if let Some(k) = k.filter(|&k| k != analysis.k) {
         return Err(fail(format!(
             "--k {k} does not match the analysis file {} (k = {}); drop --k or re-run `texsyn analyze --k {k}`",
@@ -360,30 +314,14 @@ pub fn read_source(
     Ok(Source::Analysis(analysis))
 }
 
-/// The full-resolution exemplar for magnification: RGBA8 pixels, width, height, factor.
-pub type HiRes = (Vec<[u8; 4]>, u32, u32, u32);
-
-/// `--magnify F`: the exemplar downsampled F times (what is analysed and synthesized)
-/// and its full-resolution colours (what the output reads).
-pub fn magnify_source(source: Source, f: u32) -> CliResult<(Source, HiRes)> {
-    match source {
-        Source::Analysis(_) => Err(fail(
+/// `--magnify F`: the exemplar downsampled F times and its full-resolution colours.
+pub fn magnify_source(source: Source, f: u32) -> CliResult<(Source, Magnified)> {
+    if let Source::Analysis(_) = source {
+        return Err(fail(
             "--magnify needs the exemplar image (its full-resolution colours), not an analysis file",
-        )),
-        Source::Image(ex) => {
-            let (small, hi) = texsyn::image_io::downsample_exemplar(&ex, f)?;
-            let hi_res = (hi, small.width * f, small.height * f, f);
-            Ok((Source::Image(small), hi_res))
-        }
+        ));
     }
-}
-
-/// The top-left `w x h` pixels of a row-major image `width` pixels wide (a full-resolution
-/// map cropped as [`magnify_source`] cropped the exemplar).
-pub fn crop_rows(pixels: &[[u8; 4]], width: u32, w: u32, h: u32) -> Vec<[u8; 4]> {
-    (0..h as usize)
-        .flat_map(|y| pixels[y * width as usize..][..w as usize].iter().copied())
-        .collect()
+    Ok(source.magnify(f)?)
 }
 
 /// The library's size errors name its API (`SynthParams::origin`); name the option
@@ -445,7 +383,7 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
             .iter()
             .map(|a| ("input of --also", a.input.as_path())),
     );
-    inputs.extend(super::field::FieldSpec::input(&args.field));
+    inputs.extend(super::field::FieldSpec::input(&args.field.field));
     inputs.extend(
         args.appearance
             .feature_mask
@@ -479,7 +417,7 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
     });
     let input = (|| -> CliResult<_> {
         // The field (a file's size and values too) before the analysis.
-        let field = match &args.field {
+        let field = match &args.field.field {
             Some(f) => Some(f.resolve(args.window, width, height)?),
             None => None,
         };
@@ -559,7 +497,7 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
                 // Only a corrected finest level reads its similarity sets, and this
                 // analysis serves this one synthesis: same bytes, 8-26% less analysis
                 // time (128-512 px exemplars).
-                finest_sets: args.finest_passes > 0,
+                finest_sets: args.schedule.finest_passes > 0,
                 ..AnalysisOptions::default()
             };
             args.appearance.apply(&mut options)?;
@@ -599,15 +537,15 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
         width,
         height,
         origin: args.window,
-        seed: args.seed,
+        seed: args.seed.seed,
         randomness: args.randomness.clone().map(|r| r.0).unwrap_or_default(),
         extra_still_levels: 0,
-        passes: args.passes,
-        second_finest_passes: args.second_finest_passes,
-        finest_passes: args.finest_passes,
-        sets_every: args.sets_every,
+        passes: args.schedule.passes,
+        second_finest_passes: args.schedule.second_finest_passes,
+        finest_passes: args.schedule.finest_passes,
+        sets_every: args.schedule.sets_every,
         coherence: args.coherence,
-        distance: args.distance,
+        distance: args.schedule.distance,
         field,
         tileable_output: args.tileable_output,
         surface: None,
@@ -727,7 +665,11 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
             )));
         }
         let pixels = match &hi_res {
-            Some((_, hw, hh, _)) => crop_rows(&map_pixels, ew, *hw, *hh),
+            Some(Magnified {
+                width: hw,
+                height: hh,
+                ..
+            }) => crop_rows(&map_pixels, ew, *hw, *hh),
             None => map_pixels,
         };
         extra.push((
@@ -741,8 +683,15 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
     }
 
     let timings;
-    if let (Some((hi, hw, hh, f)), false) =
-        (&hi_res, args.coords_out.is_some() || !extra.is_empty())
+    if let (
+        Some(Magnified {
+            pixels: hi,
+            width: hw,
+            height: hh,
+            factor: f,
+        }),
+        false,
+    ) = (&hi_res, args.coords_out.is_some() || !extra.is_empty())
     {
         let t = Instant::now();
         let gpu = synthesizer
@@ -768,7 +717,12 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
         let t = Instant::now();
         let maps: Vec<_> = extra.iter().map(|(m, _)| m.clone()).collect();
         let (coords, out_w, out_h, colors, map_pixels) = match &hi_res {
-            Some((hi, hw, hh, f)) => {
+            Some(Magnified {
+                pixels: hi,
+                width: hw,
+                height: hh,
+                factor: f,
+            }) => {
                 let m = synthesizer
                     .synthesize_magnified_with_maps(&ctx, &params, hi, *hw, *hh, *f, &maps)
                     .map_err(cli_hint(args.tileable_output))?;
@@ -880,7 +834,7 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
         args.output.display(),
         out_size.0,
         out_size.1,
-        args.seed,
+        args.seed.seed,
     ));
     if let Some(line) = guard_line {
         ui.info(line);

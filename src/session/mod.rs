@@ -17,6 +17,9 @@
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+mod source;
+pub use source::{crop_rows, ExemplarSource, Magnified};
+
 use crate::analysis::{self, Analysis, AnalysisOptions, Exemplar, Progress};
 use crate::error::{Error, Result};
 use crate::gpu::copy_guard::DEFAULT_COPY_BUDGET;
