@@ -31,7 +31,6 @@
 //! texture can copy more than the budget between them; `--copy-budget 0` (the default
 //! schedule) bounds the copies at any size.
 
-use super::context::GpuContext;
 use super::synth::{GpuSynthesizer, ProbeRun};
 use crate::error::{Error, Result};
 use crate::passes::{SynthParams, Synthesis};
@@ -143,12 +142,7 @@ impl GpuSynthesizer {
     /// piece ([`GpuSynthesizer::fits`]). Costs one synthesis of the probe window per tier
     /// tried (less for a probe given up early, see [`EARLY_CHECKS`]), plus the result's
     /// own when it is another window or every probe failed.
-    pub fn choose_schedule(
-        &self,
-        ctx: &GpuContext,
-        params: &SynthParams,
-        budget: f32,
-    ) -> Result<ScheduleChoice> {
+    pub fn choose_schedule(&self, params: &SynthParams, budget: f32) -> Result<ScheduleChoice> {
         if !budget.is_finite() || !(0.0..=1.0).contains(&budget) {
             return Err(Error::InvalidParameter(format!(
                 "copy budget {budget} must be between 0 and 1"
@@ -177,7 +171,7 @@ impl GpuSynthesizer {
         }
         // A probe the device cannot synthesize in one piece (the output is then
         // assembled from windows).
-        if !self.fits(ctx, &Self::probe_params(params)) {
+        if !self.fits(&Self::probe_params(params)) {
             choice.unprobed = Some("its probe would not fit the device in one piece".into());
             return Ok(choice);
         }
@@ -188,7 +182,7 @@ impl GpuSynthesizer {
             };
             let probe = Self::probe_params(&stiller);
             let checks = EARLY_CHECKS.map(|(up, margin)| (up, budget as f64 + margin));
-            match self.synthesize_probe(ctx, &probe, &checks)? {
+            match self.synthesize_probe(&probe, &checks)? {
                 ProbeRun::Stopped { copy, spacing } => choice.probes.push(Probe {
                     extra_still_levels: extra,
                     copy,

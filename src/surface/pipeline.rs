@@ -11,7 +11,6 @@ use super::tangent_field::{DirectionSource, ScaleSource, TangentField};
 use crate::analysis::Analysis;
 use crate::error::{Error, Result};
 use crate::gpu::synth::{ExtraMap, GpuSynthesizer};
-use crate::gpu::GpuContext;
 use crate::passes::fill::AtlasDomain;
 use crate::passes::{SynthParams, Synthesis};
 
@@ -170,14 +169,13 @@ pub fn atlas_params(prepared: &PreparedSurface, base: &SynthParams) -> SynthPara
 /// Synthesizes the colour atlas (and `extra` maps) on the GPU and reads them back.
 /// Gutter texels hold the texture continued across the chart seams.
 pub fn synthesize(
-    ctx: &GpuContext,
     synthesizer: &GpuSynthesizer,
     prepared: &PreparedSurface,
     base: &SynthParams,
     extra: &[ExtraMap],
 ) -> Result<(Synthesis, Vec<Vec<[u8; 4]>>)> {
     let params = atlas_params(prepared, base);
-    synthesizer.synthesize_with_maps(ctx, &params, extra)
+    synthesizer.synthesize_with_maps(&params, extra)
 }
 
 /// The finest level's Jacobians as floats (exemplar pixels per atlas texel), for

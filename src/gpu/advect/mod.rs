@@ -17,7 +17,6 @@ mod velocity;
 
 use std::sync::Arc;
 
-use super::context::GpuContext;
 use super::shaders;
 use super::synth::{read_buffer, wait, GpuSynthesis, GpuSynthesizer};
 use crate::error::{Error, Result};
@@ -65,18 +64,18 @@ impl Advection {
     /// Synthesizes frame 0 of `params` (an isometric plan is run with the identity
     /// field: advection needs continuous coordinates).
     pub fn new(
-        ctx: &GpuContext,
         synthesizer: Arc<GpuSynthesizer>,
         params: &SynthParams,
         options: AdvectOptions,
     ) -> Result<Self> {
+        let ctx = &synthesizer.context.clone();
         crate::gpu::synth::check_device_limits(&ctx.limits())?;
         let params = Self::synthesis_params(params);
         options.check()?;
         let plan = SynthPlan::with_torus(synthesizer.analysis(), &params, false)?;
         options.check_for_pyramid(plan.levels.len())?;
         // The synthesis of frame 0 has the same limits (texture sides, buffers).
-        synthesizer.check_output(ctx, &plan)?;
+        synthesizer.check_output(&plan)?;
         let n_coords = plan.advect_buffer_len(options.fade > 0);
         let pixels = params.width as u64 * params.height as u64;
         let max = ctx.limits().max_storage_buffer_binding_size;
@@ -104,13 +103,13 @@ impl Advection {
                 usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             });
-            let texture = synthesizer.output_texture(ctx, params.width, params.height);
+            let texture = synthesizer.output_texture(params.width, params.height);
             // The quarter-pixel tables the frames read, if any (the most corrected
             // level's, with the projected distance), built now rather than in frame 1.
             let analysis = synthesizer.analysis();
             let frame = plan.advect_schedule(analysis, &options, 1);
             if let Some(level) = crate::passes::plan::quarter_tables_level(&frame, analysis) {
-                synthesizer.fine_tables(ctx, level);
+                synthesizer.fine_tables(level);
             }
             let (quantize, quantize_layout) = quantize_pipeline(
                 ctx,
@@ -154,9 +153,9 @@ impl Advection {
         let schedule = this
             .plan
             .advect_first_schedule(this.synthesizer.analysis(), &this.options);
-        Self::prepare_frames(ctx, &this.synthesizer, &this.plan, &this.options, &schedule)?;
+        Self::prepare_frames(&this.synthesizer, &this.plan, &this.options, &schedule)?;
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
-        this.record(ctx, &mut encoder, &schedule, true)?;
+        this.record(&mut encoder, &schedule, true)?;
         ctx.scoped(|| ctx.queue.submit([encoder.finish()]))?;
         Ok(this)
     }
@@ -190,14 +189,13 @@ impl Advection {
 
     fn record(
         &self,
-        ctx: &GpuContext,
         encoder: &mut wgpu::CommandEncoder,
         schedule: &[Dispatch],
         clear: bool,
     ) -> Result<()> {
+        let ctx = &self.synthesizer.context;
         ctx.scoped(|| {
             self.synthesizer.record_with(
-                ctx,
                 encoder,
                 &self.plan,
                 schedule,
@@ -237,7 +235,8 @@ impl Advection {
 
     /// An sRGB view of [`Self::texture`] for sampling (see
     /// [`GpuSynthesis::srgb_view`]); `None` on the GL backend.
-    pub fn srgb_view(&self, ctx: &GpuContext) -> Option<wgpu::TextureView> {
+    pub fn srgb_view(&self) -> Option<wgpu::TextureView> {
+        let ctx = &self.synthesizer.context;
         self.output.srgb_view(ctx)
     }
 
@@ -284,13 +283,9 @@ impl Advection {
     /// ahead, e.g. one per weight a host wants to blend through); the swap itself only
     /// checks and, where the frames read them, builds the new analysis's quarter-pixel
     /// tables, and the pipelines of its frames that are not built yet.
-    pub fn set_synthesizer(
-        &mut self,
-        ctx: &GpuContext,
-        synthesizer: Arc<GpuSynthesizer>,
-    ) -> Result<()> {
+    pub fn set_synthesizer(&mut self, synthesizer: Arc<GpuSynthesizer>) -> Result<()> {
+        let ctx = &self.synthesizer.context;
         // Both on this advection's context (its buffers live there).
-        self.synthesizer.check_context(ctx)?;
         synthesizer.check_context(ctx)?;
         let (old, new) = (self.synthesizer.analysis(), synthesizer.analysis());
         let wrapping = |t: bool| if t { "tileable" } else { "not tileable" };
@@ -323,14 +318,14 @@ impl Advection {
             ));
         }
         self.options.check_for_pyramid(plan.levels.len())?;
-        synthesizer.check_output(ctx, &plan)?;
+        synthesizer.check_output(&plan)?;
         ctx.scoped(|| {
             let frame = plan.advect_schedule(new, &self.options, self.frame);
             if let Some(level) = crate::passes::plan::quarter_tables_level(&frame, new) {
-                synthesizer.fine_tables(ctx, level);
+                synthesizer.fine_tables(level);
             }
         })?;
-        Self::prepare_frames(ctx, &synthesizer, &plan, &self.options, &[])?;
+        Self::prepare_frames(&synthesizer, &plan, &self.options, &[])?;
         if !Arc::ptr_eq(&self.synthesizer, &synthesizer) {
             self.remake_static = true;
         }
@@ -350,11 +345,11 @@ impl Advection {
     /// encoder, so this may come between [`Self::encode_step`] and the submission of its
     /// encoder); the next frame then starts every pixel unfaded, as it does when fades
     /// of one frame become longer (one-frame fades keep no ghosts).
-    pub fn set_options(&mut self, ctx: &GpuContext, options: AdvectOptions) -> Result<()> {
-        self.synthesizer.check_context(ctx)?;
+    pub fn set_options(&mut self, options: AdvectOptions) -> Result<()> {
+        let ctx = &self.synthesizer.context;
         options.check_for_pyramid(self.plan.levels.len())?;
         // Before anything changes: an error leaves the advection as it was.
-        Self::prepare_frames(ctx, &self.synthesizer, &self.plan, &options, &[])?;
+        Self::prepare_frames(&self.synthesizer, &self.plan, &options, &[])?;
         let need = self.plan.advect_buffer_len(options.fade > 0) * 8;
         if need > self.coords.size() {
             let max = ctx.limits().max_storage_buffer_binding_size;
@@ -395,7 +390,6 @@ impl Advection {
     /// subpasses rotate over the frames, whose schedules repeat within
     /// [`PREPARED_FRAMES`].
     fn prepare_frames(
-        ctx: &GpuContext,
         synthesizer: &GpuSynthesizer,
         plan: &SynthPlan,
         options: &AdvectOptions,
@@ -411,7 +405,7 @@ impl Advection {
             schedules.push([static_levels.as_slice(), &frame].concat());
             schedules.push(frame);
         }
-        synthesizer.prepare_schedules(ctx, plan, &schedules)
+        synthesizer.prepare_schedules(plan, &schedules)
     }
 
     /// Whether `plan` computes the same regions at every level as the current one (the
@@ -463,14 +457,16 @@ impl Advection {
     /// frame's time, since nothing overlaps.
     pub fn profile_step(
         &mut self,
-        ctx: &GpuContext,
         velocity: &[[f32; 2]],
         dt: f32,
     ) -> Result<Vec<(PassKind, usize, std::time::Duration)>> {
-        self.upload_velocity(ctx, velocity, dt)?;
+        // A handle of its own: the frame below borrows `self` mutably.
+        let synthesizer = Arc::clone(&self.synthesizer);
+        let ctx = &synthesizer.context;
+        self.upload_velocity(velocity, dt)?;
         if self.grow_from.is_some() {
             let mut encoder = ctx.device.create_command_encoder(&Default::default());
-            self.record_grow(ctx, &mut encoder)?;
+            self.record_grow(&mut encoder)?;
             ctx.scoped(|| ctx.queue.submit([encoder.finish()]))?;
         }
         wait(ctx)?;
@@ -478,7 +474,7 @@ impl Advection {
         let mut out = Vec::with_capacity(schedule.len());
         for d in &schedule {
             let mut encoder = ctx.device.create_command_encoder(&Default::default());
-            self.record(ctx, &mut encoder, std::slice::from_ref(d), false)?;
+            self.record(&mut encoder, std::slice::from_ref(d), false)?;
             let buffer = encoder.finish();
             let t = std::time::Instant::now();
             ctx.scoped(|| ctx.queue.submit([buffer]))?;
@@ -490,17 +486,18 @@ impl Advection {
     }
 
     /// Records the pending copy into an enlarged coordinate buffer (see `grow_from`).
-    fn record_grow(&mut self, ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder) -> Result<()> {
+    fn record_grow(&mut self, encoder: &mut wgpu::CommandEncoder) -> Result<()> {
+        let ctx = &self.synthesizer.context;
         if let Some(old) = self.grow_from.take() {
             ctx.scoped(|| encoder.copy_buffer_to_buffer(&old, 0, &self.coords, 0, old.size()))?;
         }
         Ok(())
     }
 
-    fn record_frame(&mut self, ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder) -> Result<()> {
-        self.record_grow(ctx, encoder)?;
+    fn record_frame(&mut self, encoder: &mut wgpu::CommandEncoder) -> Result<()> {
+        self.record_grow(encoder)?;
         let schedule = self.frame_schedule();
-        self.record(ctx, encoder, &schedule, false)?;
+        self.record(encoder, &schedule, false)?;
         self.frame_done();
         Ok(())
     }
@@ -509,15 +506,15 @@ impl Advection {
     /// After [`Self::encode_step`], only once its encoder is submitted (before, this
     /// reads the previous frame). `ctx` must be the one the advection was made with (or
     /// a clone); another is an error.
-    pub fn read_rgba8(&self, ctx: &GpuContext) -> Result<Vec<u8>> {
-        self.synthesizer.check_context(ctx)?;
+    pub fn read_rgba8(&self) -> Result<Vec<u8>> {
+        let ctx = &self.synthesizer.context;
         self.output.read_rgba8(ctx)
     }
 
     /// Waits for the GPU and reads the whole coordinate buffer (every level, then the
     /// flag region), to compare with the CPU mirror.
-    pub fn read_coords(&self, ctx: &GpuContext) -> Result<Vec<[i32; 2]>> {
-        self.synthesizer.check_context(ctx)?;
+    pub fn read_coords(&self) -> Result<Vec<[i32; 2]>> {
+        let ctx = &self.synthesizer.context;
         let bytes = self.coords.size();
         let rb = ctx.scoped(|| {
             let rb = ctx.device.create_buffer(&wgpu::BufferDescriptor {

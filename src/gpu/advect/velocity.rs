@@ -2,6 +2,8 @@
 //! buffer or texture the caller owns quantized on the GPU into the advection's velocity
 //! buffer, then one frame recorded.
 
+use std::sync::Arc;
+
 use super::Advection;
 use crate::error::{Error, Result};
 use crate::gpu::shaders;
@@ -22,23 +24,21 @@ impl Advection {
     /// One frame from host velocities (one per output pixel, row-major, pixels per unit
     /// time), submitted to the queue. Errors on a wrong count, a non-finite value or a
     /// `dt` that is not positive and finite (skip the call for a paused frame).
-    pub fn step(&mut self, ctx: &GpuContext, velocity: &[[f32; 2]], dt: f32) -> Result<()> {
-        self.upload_velocity(ctx, velocity, dt)?;
+    pub fn step(&mut self, velocity: &[[f32; 2]], dt: f32) -> Result<()> {
+        // A handle of its own: the frame below borrows `self` mutably.
+        let synthesizer = Arc::clone(&self.synthesizer);
+        let ctx = &synthesizer.context;
+        self.upload_velocity(velocity, dt)?;
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
-        self.record_frame(ctx, &mut encoder)?;
+        self.record_frame(&mut encoder)?;
         ctx.scoped(|| ctx.queue.submit([encoder.finish()]))?;
         Ok(())
     }
 
     /// Checks `dt` and the host velocities (count, finite), quantizes them and writes
     /// them to the velocity buffer.
-    pub(super) fn upload_velocity(
-        &self,
-        ctx: &GpuContext,
-        velocity: &[[f32; 2]],
-        dt: f32,
-    ) -> Result<()> {
-        self.synthesizer.check_context(ctx)?;
+    pub(super) fn upload_velocity(&self, velocity: &[[f32; 2]], dt: f32) -> Result<()> {
+        let ctx = &self.synthesizer.context;
         Self::check_dt(dt)?;
         let n = self.params.width as usize * self.params.height as usize;
         if velocity.len() != n {
@@ -81,12 +81,10 @@ impl Advection {
     /// skip the call for a paused frame).
     pub fn encode_step(
         &mut self,
-        ctx: &GpuContext,
         encoder: &mut wgpu::CommandEncoder,
         velocity: &wgpu::Buffer,
         dt: f32,
     ) -> Result<()> {
-        self.synthesizer.check_context(ctx)?;
         Self::check_dt(dt)?;
         let n = self.params.width as u64 * self.params.height as u64;
         if velocity.size() < n * 8 {
@@ -110,15 +108,8 @@ impl Advection {
             offset: 0,
             size: std::num::NonZeroU64::new(n * 8),
         });
-        self.record_quantize(
-            ctx,
-            encoder,
-            &self.quantize,
-            &self.quantize_layout,
-            input,
-            dt,
-        )?;
-        self.record_frame(ctx, encoder)
+        self.record_quantize(encoder, &self.quantize, &self.quantize_layout, input, dt)?;
+        self.record_frame(encoder)
     }
 
     /// [`Self::encode_step`] from a velocity texture the caller owns (e.g. a fluid
@@ -132,12 +123,11 @@ impl Advection {
     /// run before anything is recorded, as in [`Self::encode_step`].
     pub fn encode_step_texture(
         &mut self,
-        ctx: &GpuContext,
         encoder: &mut wgpu::CommandEncoder,
         velocity: &wgpu::Texture,
         dt: f32,
     ) -> Result<()> {
-        self.synthesizer.check_context(ctx)?;
+        let ctx = &self.synthesizer.context;
         Self::check_dt(dt)?;
         let (w, h) = (self.params.width, self.params.height);
         let size = velocity.size();
@@ -204,8 +194,8 @@ impl Advection {
         })?;
         let (pipeline, layout) = self.texture_quantize.as_ref().expect("built above");
         let input = wgpu::BindingResource::TextureView(&view);
-        self.record_quantize(ctx, encoder, pipeline, layout, input, dt)?;
-        self.record_frame(ctx, encoder)
+        self.record_quantize(encoder, pipeline, layout, input, dt)?;
+        self.record_frame(encoder)
     }
 
     /// Records the quantization of the caller's velocities (`input`, binding 1 of
@@ -214,13 +204,13 @@ impl Advection {
     /// instance fails there, before anything is recorded.
     fn record_quantize(
         &self,
-        ctx: &GpuContext,
         encoder: &mut wgpu::CommandEncoder,
         pipeline: &wgpu::ComputePipeline,
         layout: &wgpu::BindGroupLayout,
         input: wgpu::BindingResource,
         dt: f32,
     ) -> Result<()> {
+        let ctx = &self.synthesizer.context;
         let n = self.params.width as u64 * self.params.height as u64;
         let group = ctx.scoped(|| {
             let uniform = crate::passes::velocity::VelocityParams {

@@ -154,9 +154,9 @@ impl GpuSynthesizer {
     /// while a synthesis is recorded into it).
     pub(super) fn scratch_for(
         &self,
-        ctx: &GpuContext,
         plan: &SynthPlan,
     ) -> std::sync::MutexGuard<'_, Option<Scratch>> {
+        let ctx = &self.context;
         let mut guard = self.scratch.lock().unwrap_or_else(|e| e.into_inner());
         let len = plan.coord_buffer_len();
         let fits = guard.as_ref().is_some_and(|s| s.entries >= len);
@@ -175,7 +175,8 @@ impl GpuSynthesizer {
     /// 16-byte stand-in until the first upload). Called inside the caller's error scope
     /// ([`GpuContext::scoped`]): a buffer the device cannot create is reported there (the
     /// stand-in is bound meanwhile and the upload tried again next time).
-    pub(super) fn qe_for(&self, ctx: &GpuContext, schedule: &[Dispatch]) -> wgpu::Buffer {
+    pub(super) fn qe_for(&self, schedule: &[Dispatch]) -> wgpu::Buffer {
+        let ctx = &self.context;
         let mut qe = self.qe.lock().unwrap_or_else(|e| e.into_inner());
         let needed = schedule.iter().any(|d| {
             matches!(d.kind, PassKind::Correct | PassKind::CorrectAniso)
@@ -197,11 +198,10 @@ impl GpuSynthesizer {
     /// instead of `et` and `qe` (a variant of their own).
     pub(super) fn fine_reads<'a>(
         &'a self,
-        ctx: &GpuContext,
         schedule: &[Dispatch],
     ) -> (Option<&'a FineTables>, impl Fn(&Dispatch) -> bool + 'a) {
         let level = crate::passes::plan::quarter_tables_level(schedule, &self.analysis);
-        let fine = level.and_then(|l| self.fine_tables(ctx, l));
+        let fine = level.and_then(|l| self.fine_tables(l));
         let et_base = fine.map(|f| f.et_base);
         let reads = move |d: &Dispatch| {
             Some(d.level) == level
@@ -215,7 +215,8 @@ impl GpuSynthesizer {
     /// caller's error scope); `None` if it has none or they exceed the device's limits.
     /// [`crate::gpu::advect::Advection::new`] calls it so that the first frame does not
     /// pay for them.
-    pub(crate) fn fine_tables(&self, ctx: &GpuContext, level: usize) -> Option<&FineTables> {
+    pub(crate) fn fine_tables(&self, level: usize) -> Option<&FineTables> {
+        let ctx = &self.context;
         self.fine
             .get(level)?
             .get_or_init(|| FineTables::build(ctx, &self.analysis, level))
@@ -225,11 +226,8 @@ impl GpuSynthesizer {
     /// The Jacobian field rasterized on the host for this plan's regions (a placeholder
     /// for isometric synthesis) and the atlas surface buffer, from the cache when the
     /// last plan had the same field and regions.
-    pub(super) fn jacobian_buffers(
-        &self,
-        ctx: &GpuContext,
-        plan: &SynthPlan,
-    ) -> (wgpu::Buffer, wgpu::Buffer) {
+    pub(super) fn jacobian_buffers(&self, plan: &SynthPlan) -> (wgpu::Buffer, wgpu::Buffer) {
+        let ctx = &self.context;
         let key: JacobianKey = (
             plan.params.field.clone(),
             plan.levels

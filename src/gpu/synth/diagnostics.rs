@@ -2,7 +2,6 @@
 
 use super::{read_buffer, wait, GpuSynthesizer};
 use crate::error::Result;
-use crate::gpu::GpuContext;
 use crate::passes::plan::PassKind;
 use crate::passes::SynthParams;
 
@@ -12,27 +11,19 @@ impl GpuSynthesizer {
     /// the schedule's (kind, level) and the wall time of each dispatch, in order.
     pub fn profile(
         &self,
-        ctx: &GpuContext,
         params: &SynthParams,
     ) -> Result<Vec<(PassKind, usize, std::time::Duration)>> {
-        let plan = self.plan_for(ctx, params)?;
-        self.check_output(ctx, &plan)?;
+        let ctx = &self.context;
+        let plan = self.plan_for(params)?;
+        self.check_output(&plan)?;
         let schedule = plan.schedule(&self.analysis);
-        let texture = ctx.scoped(|| self.output_texture(ctx, params.width, params.height))?;
+        let texture = ctx.scoped(|| self.output_texture(params.width, params.height))?;
         let view = texture.create_view(&Default::default());
         let mut out = Vec::with_capacity(schedule.len());
         for (i, d) in schedule.iter().enumerate() {
             let mut encoder = ctx.device.create_command_encoder(&Default::default());
             ctx.scoped(|| {
-                self.record(
-                    ctx,
-                    &mut encoder,
-                    &plan,
-                    &schedule[i..=i],
-                    &view,
-                    i == 0,
-                    &[],
-                );
+                self.record(&mut encoder, &plan, &schedule[i..=i], &view, i == 0, &[]);
             })?;
             let buffer = encoder.finish();
             let t = std::time::Instant::now();
@@ -45,23 +36,19 @@ impl GpuSynthesizer {
 
     /// Test hook: runs only the first `count` dispatches of the schedule and returns the
     /// whole coordinate array (every level), to compare with the CPU mirror pass by pass.
-    pub fn run_prefix(
-        &self,
-        ctx: &GpuContext,
-        params: &SynthParams,
-        count: usize,
-    ) -> Result<Vec<[i32; 2]>> {
-        let plan = self.plan_for(ctx, params)?;
-        self.check_output(ctx, &plan)?;
+    pub fn run_prefix(&self, params: &SynthParams, count: usize) -> Result<Vec<[i32; 2]>> {
+        let ctx = &self.context;
+        let plan = self.plan_for(params)?;
+        self.check_output(&plan)?;
         let schedule = plan.schedule(&self.analysis);
         let schedule = &schedule[..count.min(schedule.len())];
-        let texture = ctx.scoped(|| self.output_texture(ctx, params.width, params.height))?;
+        let texture = ctx.scoped(|| self.output_texture(params.width, params.height))?;
         let view = texture.create_view(&Default::default());
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
         let bytes = plan.coord_count * 8;
         let readback = ctx.scoped(|| {
             // Cleared first so levels not yet written read as zeros, as on the CPU.
-            let coords = self.record(ctx, &mut encoder, &plan, schedule, &view, true, &[]);
+            let coords = self.record(&mut encoder, &plan, schedule, &view, true, &[]);
             let rb = ctx.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("texsyn coords readback"),
                 size: bytes,

@@ -13,11 +13,11 @@ impl GpuSynthesizer {
     /// pyramid and Jacobians do not fit the device keeps the output's own periods
     /// (the plan [`SynthPlan::with_torus`] makes without the torus, whose sides that are
     /// not multiples of 4 show a faint seam at the wrap) where that one fits.
-    pub fn plan_for(&self, ctx: &GpuContext, params: &SynthParams) -> Result<SynthPlan> {
+    pub fn plan_for(&self, params: &SynthParams) -> Result<SynthPlan> {
         let plan = SynthPlan::new(&self.analysis, params)?;
-        if plan.torus.is_some() && self.check_output(ctx, &plan).is_err() {
+        if plan.torus.is_some() && self.check_output(&plan).is_err() {
             let exact = SynthPlan::with_torus(&self.analysis, params, false)?;
-            if self.check_output(ctx, &exact).is_ok() {
+            if self.check_output(&exact).is_ok() {
                 return Ok(exact);
             }
         }
@@ -43,8 +43,8 @@ impl GpuSynthesizer {
 
     /// Checks a plan's output (size, coordinate pyramid or Jacobians, dispatch counts)
     /// against the device limits before any work is recorded; checks the context too.
-    pub(crate) fn check_output(&self, ctx: &GpuContext, plan: &SynthPlan) -> Result<()> {
-        self.check_context(ctx)?;
+    pub(crate) fn check_output(&self, plan: &SynthPlan) -> Result<()> {
+        let ctx = &self.context;
         let limits = ctx.limits();
         let p = &plan.params;
         let max_dim = limits.max_texture_dimension_2d;
@@ -96,9 +96,9 @@ impl GpuSynthesizer {
 
     /// Whether `params` can be synthesized in one piece on this device (its coordinate
     /// pyramid, Jacobians and dispatches within the device's limits).
-    pub fn fits(&self, ctx: &GpuContext, params: &SynthParams) -> bool {
-        self.plan_for(ctx, params)
-            .is_ok_and(|plan| self.check_output(ctx, &plan).is_ok())
+    pub fn fits(&self, params: &SynthParams) -> bool {
+        self.plan_for(params)
+            .is_ok_and(|plan| self.check_output(&plan).is_ok())
     }
 }
 

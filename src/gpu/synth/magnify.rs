@@ -5,7 +5,6 @@ use super::limits::too_large;
 use super::record::MapTarget;
 use super::{wait, ExtraMap, GpuSynthesis, GpuSynthesizer};
 use crate::error::{Error, Result};
-use crate::gpu::GpuContext;
 use crate::passes::{SynthParams, Synthesis};
 
 /// A magnified synthesis with its material sets, on the host
@@ -37,7 +36,6 @@ impl GpuSynthesizer {
     #[allow(clippy::too_many_arguments)]
     pub fn synthesize_magnified_with_maps(
         &self,
-        ctx: &GpuContext,
         params: &SynthParams,
         hi: &[[u8; 4]],
         hi_width: u32,
@@ -45,9 +43,8 @@ impl GpuSynthesizer {
         factor: u32,
         maps: &[ExtraMap],
     ) -> Result<MagnifiedSynthesis> {
-        self.check_magnify(ctx, params, (hi, hi_width, hi_height), factor)?;
+        self.check_magnify(params, (hi, hi_width, hi_height), factor)?;
         let (synthesis, colors, maps) = self.synthesize_maps_inner(
-            ctx,
             params,
             maps,
             Some((hi, hi_width, hi_height, factor)),
@@ -67,11 +64,11 @@ impl GpuSynthesizer {
     /// size against the device).
     fn check_magnify(
         &self,
-        ctx: &GpuContext,
         params: &SynthParams,
         (hi, hi_width, hi_height): (&[[u8; 4]], u32, u32),
         factor: u32,
     ) -> Result<()> {
+        let ctx = &self.context;
         let a = &self.analysis;
         if ![2, 4, 8].contains(&factor) {
             return Err(Error::InvalidParameter(format!(
@@ -112,23 +109,23 @@ impl GpuSynthesizer {
     /// texture (`factor * width` x `factor * height`), on the GPU.
     pub fn synthesize_magnified(
         &self,
-        ctx: &GpuContext,
         params: &SynthParams,
         hi: &[[u8; 4]],
         hi_width: u32,
         hi_height: u32,
         factor: u32,
     ) -> Result<GpuSynthesis> {
+        let ctx = &self.context;
         let a = &self.analysis;
-        self.check_magnify(ctx, params, (hi, hi_width, hi_height), factor)?;
-        let plan = self.plan_for(ctx, params)?;
-        self.check_output(ctx, &plan)?;
+        self.check_magnify(params, (hi, hi_width, hi_height), factor)?;
+        let plan = self.plan_for(params)?;
+        self.check_output(&plan)?;
         let (w, h) = (params.width * factor, params.height * factor);
         let schedule = plan.schedule(a);
         let (big, big_view, scratch_view, hi_buffer) = ctx.scoped(|| {
-            let scratch = self.output_texture(ctx, params.width, params.height);
+            let scratch = self.output_texture(params.width, params.height);
             let scratch_view = scratch.create_view(&Default::default());
-            let big = self.output_texture(ctx, w, h);
+            let big = self.output_texture(w, h);
             let big_view = big.create_view(&Default::default());
             let hi_buffer = crate::gpu::buffer_init(
                 &ctx.device,
@@ -148,14 +145,7 @@ impl GpuSynthesizer {
             hi_size: [hi_width as i32, hi_height as i32],
         };
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
-        self.record_reporting(
-            ctx,
-            &mut encoder,
-            &plan,
-            &schedule,
-            &scratch_view,
-            &[target],
-        )?;
+        self.record_reporting(&mut encoder, &plan, &schedule, &scratch_view, &[target])?;
         ctx.scoped(|| ctx.queue.submit([encoder.finish()]))?;
         wait(ctx)?;
         Ok(GpuSynthesis {

@@ -5,7 +5,6 @@ use super::limits::{fmt_bytes, too_large};
 use super::record::MapTarget;
 use super::{read_buffer, GpuSynthesizer};
 use crate::error::{Error, Result};
-use crate::gpu::GpuContext;
 use crate::passes::{SynthParams, Synthesis};
 
 /// An exemplar-aligned extra map (normal, height, roughness...) to resynthesize through
@@ -38,11 +37,10 @@ impl GpuSynthesizer {
     /// synthesis and each map's RGBA8 pixels over the output window.
     pub fn synthesize_with_maps(
         &self,
-        ctx: &GpuContext,
         params: &SynthParams,
         maps: &[ExtraMap],
     ) -> Result<(Synthesis, Vec<Vec<[u8; 4]>>)> {
-        let (s, _, m) = self.synthesize_maps_inner(ctx, params, maps, None, None)?;
+        let (s, _, m) = self.synthesize_maps_inner(params, maps, None, None)?;
         Ok((s, m))
     }
 
@@ -53,12 +51,12 @@ impl GpuSynthesizer {
     #[allow(clippy::type_complexity)]
     pub(super) fn synthesize_maps_inner(
         &self,
-        ctx: &GpuContext,
         params: &SynthParams,
         maps: &[ExtraMap],
         magnify: Option<(&[[u8; 4]], u32, u32, u32)>,
         resume: Option<(&wgpu::Buffer, usize)>,
     ) -> Result<(Synthesis, Option<Vec<[u8; 4]>>, Vec<Vec<[u8; 4]>>)> {
+        let ctx = &self.context;
         let a = &self.analysis;
         let (map_w, map_h, f) = match magnify {
             Some((_, hw, hh, f)) => (hw, hh, f),
@@ -74,8 +72,8 @@ impl GpuSynthesizer {
                 )));
             }
         }
-        let plan = self.plan_for(ctx, params)?;
-        self.check_output(ctx, &plan)?;
+        let plan = self.plan_for(params)?;
+        self.check_output(&plan)?;
         let schedule = plan.schedule(&self.analysis);
         let (w, h) = (params.width, params.height);
         let (bw, bh) = (w.saturating_mul(f), h.saturating_mul(f));
@@ -102,7 +100,7 @@ impl GpuSynthesizer {
                 ));
             }
         }
-        let texture = ctx.scoped(|| self.output_texture(ctx, w, h))?;
+        let texture = ctx.scoped(|| self.output_texture(w, h))?;
         let view = texture.create_view(&Default::default());
         // Sources of the map passes: the high-resolution colours first when magnifying.
         let sources: Vec<(&[[u8; 4]], u32)> = magnify
@@ -126,7 +124,7 @@ impl GpuSynthesizer {
                 .collect::<Vec<_>>();
             let textures: Vec<wgpu::Texture> = sources
                 .iter()
-                .map(|_| self.output_texture(ctx, bw, bh))
+                .map(|_| self.output_texture(bw, bh))
                 .collect();
             (buffers, textures)
         })?;
@@ -154,7 +152,6 @@ impl GpuSynthesizer {
             // The rest of a schedule whose first dispatches already ran on `coords`.
             Some((coords, start)) => ctx.scoped(|| {
                 self.record_with(
-                    ctx,
                     &mut encoder,
                     &plan,
                     &schedule[start.min(schedule.len())..],
@@ -165,7 +162,7 @@ impl GpuSynthesizer {
                 );
                 coords.clone()
             })?,
-            None => self.record_reporting(ctx, &mut encoder, &plan, &schedule, &view, &targets)?,
+            None => self.record_reporting(&mut encoder, &plan, &schedule, &view, &targets)?,
         };
         // The output's coordinates: the finest level's region, or a torus's resampled
         // output (`SynthPlan::output_region`), whole rows from the window's first.

@@ -50,12 +50,8 @@ impl GpuSynthesis {
 impl GpuSynthesizer {
     /// A blank output texture of [`OUTPUT_FORMAT`] (storage, texture binding, copy
     /// source), viewable as [`OUTPUT_FORMAT_SRGB`] where the backend allows.
-    pub(crate) fn output_texture(
-        &self,
-        ctx: &GpuContext,
-        width: u32,
-        height: u32,
-    ) -> wgpu::Texture {
+    pub(crate) fn output_texture(&self, width: u32, height: u32) -> wgpu::Texture {
+        let ctx = &self.context;
         ctx.device.create_texture(&wgpu::TextureDescriptor {
             label: Some("texsyn output"),
             size: wgpu::Extent3d {

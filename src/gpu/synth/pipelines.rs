@@ -379,8 +379,8 @@ impl GpuSynthesizer {
     /// plan's Jacobian field is rasterized and uploaded too (kept for the synthesis that
     /// follows with the same field and regions), and so is the `qe` table when its
     /// corrections read it. Optional; the synthesis is the same either way.
-    pub fn prepare(&self, ctx: &GpuContext, params: &SynthParams) -> Result<()> {
-        self.check_context(ctx)?;
+    pub fn prepare(&self, params: &SynthParams) -> Result<()> {
+        let ctx = &self.context;
         // The Jacobian field alongside, which the synthesis then finds in its cache, and
         // beside it the `qe` table if a correction reads it.
         self.pipelines
@@ -388,11 +388,11 @@ impl GpuSynthesizer {
                 std::thread::scope(|s| {
                     let qe = s.spawn(|| {
                         ctx.scoped(|| {
-                            self.qe_for(ctx, &plan.schedule(&self.analysis));
+                            self.qe_for(&plan.schedule(&self.analysis));
                         })
                     });
                     let jacobians = ctx.scoped(|| {
-                        self.jacobian_buffers(ctx, plan);
+                        self.jacobian_buffers(plan);
                     });
                     let qe = qe
                         .join()
@@ -408,13 +408,13 @@ impl GpuSynthesizer {
     /// them is recorded ([`crate::gpu::advect::Advection`] prepares its frames' with it).
     pub(crate) fn prepare_schedules(
         &self,
-        ctx: &GpuContext,
         plan: &SynthPlan,
         schedules: &[Vec<Dispatch>],
     ) -> Result<()> {
+        let ctx = &self.context;
         let mut dispatches = Vec::new();
         for schedule in schedules {
-            let (_, reads_fine) = self.fine_reads(ctx, schedule);
+            let (_, reads_fine) = self.fine_reads(schedule);
             dispatches.extend(schedule.iter().map(|d| {
                 let variant = Variant::of_dispatch(plan, d);
                 let variant = if reads_fine(d) {

@@ -4,7 +4,6 @@
 use super::buffers::coords_buffer;
 use super::{read_buffer, GpuSynthesizer};
 use crate::error::Result;
-use crate::gpu::GpuContext;
 use crate::passes::{SynthParams, Synthesis};
 
 /// What [`GpuSynthesizer::synthesize_probe`] found.
@@ -28,19 +27,19 @@ impl GpuSynthesizer {
     /// [`Self::synthesize_to_host`].
     pub(crate) fn synthesize_probe(
         &self,
-        ctx: &GpuContext,
         params: &SynthParams,
         checkpoints: &[(u32, f64)],
     ) -> Result<ProbeRun> {
+        let ctx = &self.context;
         let a = &*self.analysis;
-        let plan = self.plan_for(ctx, params)?;
-        self.check_output(ctx, &plan)?;
+        let plan = self.plan_for(params)?;
+        self.check_output(&plan)?;
         let schedule = plan.schedule(a);
         let last = plan.levels.len() - 1;
         let (coords, texture) = ctx.scoped(|| {
             let coords = coords_buffer(ctx, plan.coord_buffer_len(), "texsyn probe coords");
             // The checkpoints' stages write no colours (the gather is the last dispatch).
-            (coords, self.output_texture(ctx, 1, 1))
+            (coords, self.output_texture(1, 1))
         })?;
         let view = texture.create_view(&Default::default());
         let mut start = 0;
@@ -75,7 +74,6 @@ impl GpuSynthesizer {
             let mut encoder = ctx.device.create_command_encoder(&Default::default());
             let readback = ctx.scoped(|| {
                 self.record_with(
-                    ctx,
                     &mut encoder,
                     &plan,
                     &schedule[start..end],
@@ -120,7 +118,7 @@ impl GpuSynthesizer {
             }
         }
         let (synthesis, _, _) =
-            self.synthesize_maps_inner(ctx, params, &[], None, Some((&coords, start)))?;
+            self.synthesize_maps_inner(params, &[], None, Some((&coords, start)))?;
         // Whole texels (a torus's isometric output has them in fixed point).
         let texels: Vec<[i32; 2]> = synthesis
             .coords

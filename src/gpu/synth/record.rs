@@ -6,7 +6,6 @@ use super::buffers::coords_buffer;
 use super::pipelines::PROJ_BYTES;
 use super::{wait, GpuSynthesizer, Variant};
 use crate::error::Result;
-use crate::gpu::GpuContext;
 use crate::passes::common::{PassParams, PARAMS_STRIDE};
 use crate::passes::plan::{Dispatch, PassKind, SynthPlan};
 
@@ -32,20 +31,20 @@ impl GpuSynthesizer {
     #[allow(clippy::too_many_arguments)]
     pub(super) fn record_reporting(
         &self,
-        ctx: &GpuContext,
         encoder: &mut wgpu::CommandEncoder,
         plan: &SynthPlan,
         schedule: &[Dispatch],
         target: &wgpu::TextureView,
         maps: &[MapTarget<'_>],
     ) -> Result<wgpu::Buffer> {
+        let ctx = &self.context;
         let hook = self
             .progress
             .lock()
             .unwrap_or_else(|e| e.into_inner())
             .clone();
         let Some(report) = hook else {
-            return ctx.scoped(|| self.record(ctx, encoder, plan, schedule, target, false, maps));
+            return ctx.scoped(|| self.record(encoder, plan, schedule, target, false, maps));
         };
         // Every level but the last is submitted and waited for here. Between those
         // submissions another thread may submit work of its own (an `encode` on this
@@ -60,7 +59,7 @@ impl GpuSynthesizer {
         };
         for level in earlier {
             ctx.scoped(|| {
-                self.record_with(ctx, encoder, plan, level, target, false, &[], state);
+                self.record_with(encoder, plan, level, target, false, &[], state);
                 let done = std::mem::replace(
                     encoder,
                     ctx.device.create_command_encoder(&Default::default()),
@@ -73,7 +72,7 @@ impl GpuSynthesizer {
                 f(level[0].level as u32 + 1, plan.levels.len() as u32);
             }
         }
-        ctx.scoped(|| self.record_with(ctx, encoder, plan, last, target, false, maps, state))
+        ctx.scoped(|| self.record_with(encoder, plan, last, target, false, maps, state))
     }
 
     /// Records `schedule`'s dispatches, then the gathers of `maps`, into `encoder` on
@@ -82,7 +81,6 @@ impl GpuSynthesizer {
     #[allow(clippy::too_many_arguments)]
     pub(super) fn record(
         &self,
-        ctx: &GpuContext,
         encoder: &mut wgpu::CommandEncoder,
         plan: &SynthPlan,
         schedule: &[Dispatch],
@@ -90,7 +88,7 @@ impl GpuSynthesizer {
         clear: bool,
         maps: &[MapTarget<'_>],
     ) -> wgpu::Buffer {
-        self.record_with(ctx, encoder, plan, schedule, target, clear, maps, None)
+        self.record_with(encoder, plan, schedule, target, clear, maps, None)
     }
 
     /// [`Self::record`] on the caller's coordinate and velocity buffers (advection keeps
@@ -98,7 +96,6 @@ impl GpuSynthesizer {
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn record_with(
         &self,
-        ctx: &GpuContext,
         encoder: &mut wgpu::CommandEncoder,
         plan: &SynthPlan,
         schedule: &[Dispatch],
@@ -107,11 +104,12 @@ impl GpuSynthesizer {
         maps: &[MapTarget<'_>],
         state: Option<(&wgpu::Buffer, &wgpu::Buffer)>,
     ) -> wgpu::Buffer {
+        let ctx = &self.context;
         let guard;
         let coords_buffer = match state {
             Some((coords, _)) => coords,
             None => {
-                guard = self.scratch_for(ctx, plan);
+                guard = self.scratch_for(plan);
                 &guard.as_ref().unwrap().coords
             }
         };
@@ -136,7 +134,7 @@ impl GpuSynthesizer {
             let o = i * PARAMS_STRIDE as usize;
             bytes[o..o + std::mem::size_of::<PassParams>()].copy_from_slice(bytemuck::bytes_of(e));
         }
-        let (jac, surface) = self.jacobian_buffers(ctx, plan);
+        let (jac, surface) = self.jacobian_buffers(plan);
         // Parameters live in their own buffer per call: a later call must not overwrite
         // them before this one's commands have run.
         let params = crate::gpu::buffer_init(
@@ -151,7 +149,7 @@ impl GpuSynthesizer {
         // (quarter_tables_level) read them from its supersampled tables when those fit
         // (a second bind group: the tables replace `et` and `qe`, so no binding is added
         // to the layout).
-        let (fine, reads_fine) = self.fine_reads(ctx, schedule);
+        let (fine, reads_fine) = self.fine_reads(schedule);
         let make_bind_group =
             |colors: &wgpu::Buffer,
              target: &wgpu::TextureView,
@@ -217,7 +215,7 @@ impl GpuSynthesizer {
                     ],
                 })
             };
-        let qe = self.qe_for(ctx, schedule);
+        let qe = self.qe_for(schedule);
         let tables = (&self.et, &qe);
         let bind_group = make_bind_group(&self.colors, target, tables);
         let fine_group = fine.map(|f| (f, make_bind_group(&self.colors, target, (&f.et, &f.qe))));

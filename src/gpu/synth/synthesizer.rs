@@ -14,9 +14,8 @@ use crate::gpu::GpuContext;
 pub struct GpuSynthesizer {
     /// The analysed exemplar the buffers below were uploaded from.
     pub(super) analysis: Arc<Analysis>,
-    /// The context everything here was made on (a clone): calls with another context
-    /// are refused ([`Self::check_context`]).
-    pub(super) context: GpuContext,
+    /// The context everything here was made on (a clone); every call runs on it.
+    pub(crate) context: GpuContext,
     /// The device's pass pipelines, shared by every synthesizer on it.
     pub(super) pipelines: Arc<PassPipelines>,
     /// 16-byte stand-in for the velocity binding outside advection.

@@ -3,7 +3,6 @@
 
 use super::{ExtraMap, GpuSynthesizer};
 use crate::error::{Error, Result};
-use crate::gpu::GpuContext;
 use crate::passes::{SynthParams, Synthesis};
 
 /// The most pixels [`GpuSynthesizer::synthesize_in_windows`] assembles (16384 x 16384:
@@ -21,7 +20,6 @@ impl GpuSynthesizer {
     /// [`Error::InvalidParameter`].
     pub fn synthesize_in_windows(
         &self,
-        ctx: &GpuContext,
         params: &SynthParams,
         maps: &[ExtraMap],
         mut progress: impl FnMut(usize, usize),
@@ -41,17 +39,16 @@ impl GpuSynthesizer {
             ..params.clone()
         };
         let mut side = 2048u32;
-        while side > 16 && !self.fits(ctx, &window(side)) {
+        while side > 16 && !self.fits(&window(side)) {
             side /= 2;
         }
-        self.synthesize_in_windows_sized(ctx, params, maps, side, &mut progress)
+        self.synthesize_in_windows_sized(params, maps, side, &mut progress)
     }
 
     /// [`Self::synthesize_in_windows`] with windows `side` pixels a side (each must fit
     /// the device; see [`Self::fits`]).
     pub fn synthesize_in_windows_sized(
         &self,
-        ctx: &GpuContext,
         params: &SynthParams,
         maps: &[ExtraMap],
         side: u32,
@@ -106,7 +103,7 @@ impl GpuSynthesizer {
                     standalone: false,
                     ..params.clone()
                 };
-                let (s, m) = self.synthesize_with_maps(ctx, &p, maps)?;
+                let (s, m) = self.synthesize_with_maps(&p, maps)?;
                 out.coord_frac = s.coord_frac;
                 for y in 0..th {
                     let dst = (y0 + y) * w + x0;
