@@ -63,7 +63,7 @@ fn main() -> texsyn::Result<()> {
     // frames); on an atlas or along a varying field it would be carried as the paper
     // does (README, *Advection*).
     let options = AdvectOptions::recommended(&params);
-    let mut advection = Advection::new(&ctx, synthesizer, &params, options)?;
+    let mut advection = Advection::new(synthesizer, &params, options)?;
 
     // The application's velocity buffer (vec2<f32> per pixel), updated every frame (a
     // velocity texture, e.g. a fluid simulation's Rg32Float output, goes to
@@ -77,7 +77,7 @@ fn main() -> texsyn::Result<()> {
     for frame in 1..=60u32 {
         if frame == 31 {
             // Renewals faded over one frame: a lower texture energy, a little more popping.
-            advection.set_options(&ctx, AdvectOptions { fade: 1, ..options })?;
+            advection.set_options(AdvectOptions { fade: 1, ..options })?;
             // Less randomness (larger patches, more repeats) and more coherence. The
             // frames do not jitter: the levels above the advected ones are made again
             // with the new parameters, and the texture takes them on where the frames
@@ -100,12 +100,12 @@ fn main() -> texsyn::Result<()> {
         ctx.queue
             .write_buffer(&velocity, 0, bytemuck::cast_slice(&v));
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
-        advection.encode_step(&ctx, &mut encoder, &velocity, dt)?;
+        advection.encode_step(&mut encoder, &velocity, dt)?;
         // ... the application would record its own rendering here, sampling
         // advection.texture() ...
         ctx.queue.submit([encoder.finish()]);
         if frame % 20 == 0 {
-            let rgba = advection.read_rgba8(&ctx)?;
+            let rgba = advection.read_rgba8()?;
             let path = dir.join(format!("advect_{frame:03}.png"));
             texsyn::image_io::save_image_atomic(&path, w, h, 4, &rgba)?;
             println!("frame {frame}: wrote {}", path.display());

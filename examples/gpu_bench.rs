@@ -257,13 +257,13 @@ fn run(config: &Config, quick: bool) -> texsyn::Result<String> {
         };
         let params = sized(n, n);
         bench.case("2D synthesis", format!("{n}x{n}"), |ctx| {
-            if !synthesizer.fits(ctx, &params) {
+            if !synthesizer.fits(&params) {
                 return Err(texsyn::Error::InvalidParameter(
                     "does not fit the device in one piece".into(),
                 ));
             }
             time_runs(config.warmup, runs, || {
-                synthesizer.synthesize(ctx, &params)?;
+                synthesizer.synthesize(&params)?;
                 ctx.wait_idle()
             })
         });
@@ -281,10 +281,10 @@ fn run(config: &Config, quick: bool) -> texsyn::Result<String> {
                 let r = time_runs(config.warmup.min(1), config.big_runs, || {
                     match config.windows_forced {
                         Some(w) => synthesizer
-                            .synthesize_in_windows_sized(ctx, &params, &[], w, &mut |_, _| {})
+                            .synthesize_in_windows_sized(&params, &[], w, &mut |_, _| {})
                             .map(drop),
                         None => synthesizer
-                            .synthesize_in_windows(ctx, &params, &[], |_, _| {})
+                            .synthesize_in_windows(&params, &[], |_, _| {})
                             .map(drop),
                     }?;
                     ctx.wait_idle()
@@ -311,7 +311,7 @@ fn run(config: &Config, quick: bool) -> texsyn::Result<String> {
     };
     bench.case("anisometric (vortex field)", format!("{n}x{n}"), |ctx| {
         time_runs(config.warmup, config.runs, || {
-            synthesizer.synthesize(ctx, &params)?;
+            synthesizer.synthesize(&params)?;
             ctx.wait_idle()
         })
     });
@@ -334,7 +334,7 @@ fn run(config: &Config, quick: bool) -> texsyn::Result<String> {
             time_runs(config.warmup, config.runs, || {
                 session
                     .synthesizer()
-                    .synthesize_magnified(ctx, &params, &hi, hi_w, hi_h, 4)?;
+                    .synthesize_magnified(&params, &hi, hi_w, hi_h, 4)?;
                 ctx.wait_idle()
             })
         },
@@ -347,7 +347,7 @@ fn run(config: &Config, quick: bool) -> texsyn::Result<String> {
         let params = sized(n, n);
         bench.case("advection step", format!("{n}x{n}"), |ctx| {
             let options = AdvectOptions::recommended(&params);
-            let mut advection = Advection::new(ctx, Arc::clone(&synthesizer), &params, options)?;
+            let mut advection = Advection::new(Arc::clone(&synthesizer), &params, options)?;
             let v = Flow::Vortex {
                 cx: 0.5,
                 cy: 0.5,
@@ -365,7 +365,7 @@ fn run(config: &Config, quick: bool) -> texsyn::Result<String> {
             ctx.wait_idle()?;
             time_runs(config.advect_warmup, config.advect_runs, || {
                 let mut encoder = ctx.device.create_command_encoder(&Default::default());
-                advection.encode_step(ctx, &mut encoder, &velocity, 1.0)?;
+                advection.encode_step(&mut encoder, &velocity, 1.0)?;
                 ctx.queue.submit([encoder.finish()]);
                 ctx.wait_idle()
             })
@@ -402,7 +402,7 @@ fn atlas_cases(
                 pipeline::prepare(&mesh, pipeline::levels_of(synthesizer.analysis()), &options)?;
             let params = pipeline::atlas_params(&prepared, base);
             time_runs(config.warmup, runs, || {
-                synthesizer.synthesize(ctx, &params)?;
+                synthesizer.synthesize(&params)?;
                 ctx.wait_idle()
             })
         });

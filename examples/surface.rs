@@ -57,7 +57,7 @@ fn main() -> texsyn::Result<()> {
             seed: 3,
             ..SynthParams::default()
         };
-        let (synthesis, _) = pipeline::synthesize(&ctx, &synthesizer, &prepared, &params, &[])?;
+        let (synthesis, _) = pipeline::synthesize(&synthesizer, &prepared, &params, &[])?;
         let seams = seam_report(&prepared.atlas, &synthesis.colors);
         println!(
             "{name}: {} charts, seam ratio {:.2} ({} seam edges)",

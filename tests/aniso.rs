@@ -30,7 +30,7 @@ fn synth(field: Field, size: u32, origin: [i32; 2]) -> texsyn::Synthesis {
         field: Some(field),
         ..Default::default()
     };
-    gpu.synthesize_to_host(ctx(), &params).unwrap()
+    gpu.synthesize_to_host(&params).unwrap()
 }
 
 fn fidelity(field: &Field, size: u32) -> texsyn::quality::JacobianReport {
@@ -99,14 +99,11 @@ fn isometric_output_fails_a_rotated_field() {
     let a = gravel();
     let gpu = GpuSynthesizer::new(ctx(), a).unwrap();
     let iso = gpu
-        .synthesize_to_host(
-            ctx(),
-            &SynthParams {
-                width: 96,
-                height: 96,
-                ..Default::default()
-            },
-        )
+        .synthesize_to_host(&SynthParams {
+            width: 96,
+            height: 96,
+            ..Default::default()
+        })
         .unwrap();
     let rotated = Field::Constant {
         angle: 0.8,
@@ -178,7 +175,7 @@ fn degenerate_fields() {
         field: Some(map),
         ..Default::default()
     };
-    let s = gpu.synthesize_to_host(ctx(), &params).unwrap();
+    let s = gpu.synthesize_to_host(&params).unwrap();
     assert_eq!(s, texsyn::passes::synthesize_cpu(&a, &params).unwrap());
     assert!(s
         .coords_f32()
@@ -195,7 +192,7 @@ fn degenerate_fields() {
         }))),
         ..params.clone()
     };
-    let e = gpu.synthesize_to_host(ctx(), &bad).unwrap_err().to_string();
+    let e = gpu.synthesize_to_host(&bad).unwrap_err().to_string();
     assert!(e.contains("NaN"), "{e}");
     let zero = SynthParams {
         field: Some(Field::Constant {
@@ -205,7 +202,7 @@ fn degenerate_fields() {
         }),
         ..params
     };
-    assert!(gpu.synthesize_to_host(ctx(), &zero).is_err());
+    assert!(gpu.synthesize_to_host(&zero).is_err());
 }
 
 #[test]
@@ -262,8 +259,8 @@ fn material_maps_follow_the_coordinates_and_rotate_normals() {
             field: field.clone(),
             ..Default::default()
         };
-        let (s, out) = gpu.synthesize_with_maps(ctx(), &params, &maps).unwrap();
-        assert_eq!(s, gpu.synthesize_to_host(ctx(), &params).unwrap());
+        let (s, out) = gpu.synthesize_with_maps(&params, &maps).unwrap();
+        assert_eq!(s, gpu.synthesize_to_host(&params).unwrap());
         // CPU mirror of the map gather.
         let plan = SynthPlan::new(&a, &params).unwrap();
         let schedule = plan.schedule(&a);
@@ -307,7 +304,7 @@ fn material_maps_follow_the_coordinates_and_rotate_normals() {
         height: 8,
         ..Default::default()
     };
-    assert!(gpu.synthesize_with_maps(ctx(), &p, &bad).is_err());
+    assert!(gpu.synthesize_with_maps(&p, &bad).is_err());
 }
 
 #[test]
@@ -338,7 +335,7 @@ fn magnification_matches_cpu() {
                 ..Default::default()
             };
             let out = gpu
-                .synthesize_magnified(ctx(), &params, &hi, 128, 128, factor)
+                .synthesize_magnified(&params, &hi, 128, 128, factor)
                 .unwrap();
             assert_eq!((out.width, out.height), (20 * factor, 14 * factor));
             let got = out.read_rgba8(ctx()).unwrap();
@@ -389,14 +386,14 @@ fn magnification_matches_cpu() {
             ..Default::default()
         };
         let m = gpu
-            .synthesize_magnified_with_maps(ctx(), &params, &hi, 128, 128, factor, &maps)
+            .synthesize_magnified_with_maps(&params, &hi, 128, 128, factor, &maps)
             .unwrap();
         assert_eq!(
             (m.width, m.height, m.maps.len()),
             (18 * factor, 12 * factor, 2)
         );
         let alone = gpu
-            .synthesize_magnified(ctx(), &params, &hi, 128, 128, factor)
+            .synthesize_magnified(&params, &hi, 128, 128, factor)
             .unwrap()
             .read_rgba8(ctx())
             .unwrap();
@@ -431,7 +428,6 @@ fn magnification_matches_cpu() {
         assert_eq!(m.synthesis.width, 18);
         assert!(gpu
             .synthesize_magnified_with_maps(
-                ctx(),
                 &params,
                 &hi,
                 128,
@@ -453,11 +449,7 @@ fn magnification_matches_cpu() {
             height: 8,
             ..Default::default()
         };
-        assert!(gpu
-            .synthesize_magnified(ctx(), &p, &hi, 64, 64, factor)
-            .is_err());
-        assert!(gpu
-            .synthesize_magnified(ctx(), &p, &hi, 128, 128, 3)
-            .is_err());
+        assert!(gpu.synthesize_magnified(&p, &hi, 64, 64, factor).is_err());
+        assert!(gpu.synthesize_magnified(&p, &hi, 128, 128, 3).is_err());
     }
 }

@@ -115,16 +115,14 @@ fn gpu_entry_points_refuse_what_the_device_cannot_hold() {
         height: 16,
         ..Default::default()
     };
-    assert!(synth
-        .synthesize_in_windows(ctx(), &empty, &[], |_, _| {})
-        .is_err());
+    assert!(synth.synthesize_in_windows(&empty, &[], |_, _| {}).is_err());
     // Advection wider than a texture may be: TooLarge before any allocation.
     let wide = SynthParams {
         width: ctx().limits().max_texture_dimension_2d + 1,
         height: 1,
         ..Default::default()
     };
-    let e = texsyn::Advection::new(ctx(), synth.clone(), &wide, Default::default())
+    let e = texsyn::Advection::new(synth.clone(), &wide, Default::default())
         .err()
         .unwrap();
     assert!(matches!(e, texsyn::Error::TooLarge { .. }), "{e}");
@@ -136,7 +134,7 @@ fn gpu_entry_points_refuse_what_the_device_cannot_hold() {
     let a = analysis();
     let hi = vec![[0u8; 4]; (a.width * a.height * 4) as usize];
     assert!(synth
-        .synthesize_magnified(ctx(), &huge, &hi, a.width * 2, a.height * 2, 2)
+        .synthesize_magnified(&huge, &hi, a.width * 2, a.height * 2, 2)
         .is_err());
     // Too many views.
     let rgba = vec![128u8; 8 * 8 * 4];
@@ -170,9 +168,8 @@ fn a_larger_velocity_buffer_is_read_in_part() {
         height: 24,
         ..Default::default()
     };
-    let mut adv =
-        texsyn::Advection::new(ctx(), synth.clone(), &params, Default::default()).unwrap();
-    let mut twin = texsyn::Advection::new(ctx(), synth, &params, Default::default()).unwrap();
+    let mut adv = texsyn::Advection::new(synth.clone(), &params, Default::default()).unwrap();
+    let mut twin = texsyn::Advection::new(synth, &params, Default::default()).unwrap();
     // The first w * h entries a flow, the rest garbage that must not be read.
     let v = Flow::Vortex {
         cx: 0.4,
@@ -192,10 +189,10 @@ fn a_larger_velocity_buffer_is_read_in_part() {
         },
     );
     let mut encoder = ctx().device.create_command_encoder(&Default::default());
-    adv.encode_step(ctx(), &mut encoder, &buffer, 1.0).unwrap();
+    adv.encode_step(&mut encoder, &buffer, 1.0).unwrap();
     ctx().queue.submit([encoder.finish()]);
-    twin.step(ctx(), &v, 1.0).unwrap();
-    assert!(adv.read_coords(ctx()).unwrap() == twin.read_coords(ctx()).unwrap());
+    twin.step(&v, 1.0).unwrap();
+    assert!(adv.read_coords().unwrap() == twin.read_coords().unwrap());
     ctx().take_uncaptured_errors().unwrap();
 }
 
@@ -318,12 +315,12 @@ fn a_torus_that_does_not_fit_keeps_the_outputs_own_periods() {
     let torus = texsyn::passes::SynthPlan::new(&a, &params).unwrap();
     assert_eq!(torus.torus.map(|t| t.period), Some([252, 252]));
     let gpu = GpuSynthesizer::new(&small, a.clone()).unwrap();
-    let plan = gpu.plan_for(&small, &params).unwrap();
+    let plan = gpu.plan_for(&params).unwrap();
     assert!(plan.torus.is_none(), "the torus does not fit 2 MiB");
-    let out = gpu.synthesize_to_host(&small, &params).unwrap();
+    let out = gpu.synthesize_to_host(&params).unwrap();
     assert_eq!((out.width, out.height, out.coord_frac), (250, 250, 0));
     small.take_uncaptured_errors().unwrap();
     // With the default limits the torus is used.
     let gpu = GpuSynthesizer::new(ctx(), a).unwrap();
-    assert_eq!(gpu.plan_for(ctx(), &params).unwrap(), torus);
+    assert_eq!(gpu.plan_for(&params).unwrap(), torus);
 }

@@ -21,13 +21,7 @@ fn gravel_analysis(side: u32) -> Analysis {
 /// The largest verbatim copy of `output`'s window with `extra` more still levels at the
 /// level `up` levels above the finest, from the GPU's own coordinates at that level,
 /// and that level's spacing.
-fn coarse_copy(
-    syn: &GpuSynthesizer,
-    ctx: &GpuContext,
-    output: &SynthParams,
-    extra: u32,
-    up: u32,
-) -> (f64, u32) {
+fn coarse_copy(syn: &GpuSynthesizer, output: &SynthParams, extra: u32, up: u32) -> (f64, u32) {
     let a = syn.analysis();
     let p = SynthParams {
         extra_still_levels: extra,
@@ -37,7 +31,7 @@ fn coarse_copy(
     let schedule = plan.schedule(a);
     let l = plan.levels.len() - 1 - up as usize;
     let end = schedule.iter().rposition(|d| d.level == l).unwrap() + 1;
-    let all = syn.run_prefix(ctx, &p, end).unwrap();
+    let all = syn.run_prefix(&p, end).unwrap();
     let lp = &plan.levels[l];
     // The window at the origin, 1/2^up of the output's side there.
     let side = (output.width >> up) as usize;
@@ -102,13 +96,13 @@ fn the_guard_keeps_the_stillest_schedule_within_its_budget() {
     // Each tier's probe, measured here from explicit syntheses.
     let mut tiers = Vec::new();
     for extra in GUARD_TIERS {
-        let s = syn.synthesize_to_host(&ctx, &with_extra(extra)).unwrap();
+        let s = syn.synthesize_to_host(&with_extra(extra)).unwrap();
         let copy = verbatim_stats(&s.coords, s.width, s.height, ew, eh, tileable)
             .unwrap()
             .largest_region_fraction;
         tiers.push((extra, copy, s));
     }
-    let plain = syn.synthesize_to_host(&ctx, &output).unwrap();
+    let plain = syn.synthesize_to_host(&output).unwrap();
     assert_ne!(tiers[0].2.coords, plain.coords);
     assert_ne!(tiers[1].2.coords, plain.coords);
 
@@ -117,7 +111,7 @@ fn the_guard_keeps_the_stillest_schedule_within_its_budget() {
         .map(|&e| {
             EARLY_CHECKS
                 .iter()
-                .map(|&(up, _)| coarse_copy(&syn, &ctx, &output, e, up))
+                .map(|&(up, _)| coarse_copy(&syn, &output, e, up))
                 .collect()
         })
         .collect();
@@ -131,7 +125,7 @@ fn the_guard_keeps_the_stillest_schedule_within_its_budget() {
         budgets.push(*c as f32 * 0.999);
     }
     for b in budgets {
-        let choice = syn.choose_schedule(&ctx, &output, b).unwrap();
+        let choice = syn.choose_schedule(&output, b).unwrap();
         let probes: Vec<Probe> = tiers
             .iter()
             .zip(&coarse)
@@ -164,7 +158,7 @@ fn the_guard_keeps_the_stillest_schedule_within_its_budget() {
         origin: [300, -70],
         ..output.clone()
     };
-    let w = syn.choose_schedule(&ctx, &window, 1.0).unwrap();
+    let w = syn.choose_schedule(&window, 1.0).unwrap();
     assert_eq!(w.params.extra_still_levels, GUARD_TIERS[0]);
     assert_eq!(
         w.probes,
@@ -175,17 +169,14 @@ fn the_guard_keeps_the_stillest_schedule_within_its_budget() {
         }]
     );
     assert!(w.result.is_none());
-    let piece = syn.synthesize_to_host(&ctx, &w.params).unwrap();
+    let piece = syn.synthesize_to_host(&w.params).unwrap();
     let whole = syn
-        .synthesize_to_host(
-            &ctx,
-            &SynthParams {
-                width: 400,
-                height: 24,
-                origin: [0, -70],
-                ..with_extra(GUARD_TIERS[0])
-            },
-        )
+        .synthesize_to_host(&SynthParams {
+            width: 400,
+            height: 24,
+            origin: [0, -70],
+            ..with_extra(GUARD_TIERS[0])
+        })
         .unwrap();
     for y in 0..24 {
         for x in 0..40 {
@@ -209,21 +200,21 @@ fn the_guard_keeps_the_stillest_schedule_within_its_budget() {
         },
         with_extra(1),
     ] {
-        let c = syn.choose_schedule(&ctx, &p, 1.0).unwrap();
+        let c = syn.choose_schedule(&p, 1.0).unwrap();
         assert_eq!((c.params, c.probes.is_empty()), (p, true));
     }
-    let off = syn.choose_schedule(&ctx, &output, 0.0).unwrap();
+    let off = syn.choose_schedule(&output, 0.0).unwrap();
     assert_eq!((off.params, off.probes.is_empty()), (output.clone(), true));
 
     // Bad budgets and bad parameters are errors, not panics.
     for b in [-0.1, 1.5, f32::NAN] {
-        assert!(syn.choose_schedule(&ctx, &output, b).is_err(), "{b}");
+        assert!(syn.choose_schedule(&output, b).is_err(), "{b}");
     }
     let zero = SynthParams {
         width: 0,
         ..output.clone()
     };
-    assert!(syn.choose_schedule(&ctx, &zero, 0.25).is_err());
+    assert!(syn.choose_schedule(&zero, 0.25).is_err());
     ctx.take_uncaptured_errors().expect("no wgpu errors");
 }
 
@@ -240,13 +231,13 @@ fn a_probe_far_over_the_budget_is_given_up_at_a_coarser_level() {
     let (up, margin) = EARLY_CHECKS[0];
     let coarse: Vec<(f64, u32)> = GUARD_TIERS
         .iter()
-        .map(|&e| coarse_copy(&syn, &ctx, &output, e, up))
+        .map(|&e| coarse_copy(&syn, &output, e, up))
         .collect();
     // A budget every tier's coarse copy exceeds by more than the margin: each probe
     // is given up at that level, and the default schedule stays.
     let low = (coarse.iter().map(|c| c.0).fold(f64::MAX, f64::min) - margin) as f32 * 0.9;
     assert!(low > 0.0, "{coarse:?}");
-    let choice = syn.choose_schedule(&ctx, &output, low).unwrap();
+    let choice = syn.choose_schedule(&output, low).unwrap();
     assert_eq!(choice.params, output);
     assert!(choice.result.is_none());
     let expected: Vec<Probe> = GUARD_TIERS
@@ -293,13 +284,10 @@ fn a_session_applies_its_budget_to_large_exemplars_only() {
     assert_eq!(off.schedule(&params).unwrap(), params);
     let direct = |extra: u32| {
         open.synthesizer()
-            .synthesize_to_host(
-                open.context(),
-                &SynthParams {
-                    extra_still_levels: extra,
-                    ..params.clone()
-                },
-            )
+            .synthesize_to_host(&SynthParams {
+                extra_still_levels: extra,
+                ..params.clone()
+            })
             .unwrap()
             .coords
     };
@@ -385,7 +373,7 @@ fn a_larger_output_is_its_own_probe() {
         seed: 3,
         ..Default::default()
     };
-    let choice = syn.choose_schedule(&ctx, &output, 1.0).unwrap();
+    let choice = syn.choose_schedule(&output, 1.0).unwrap();
     assert_eq!(choice.params.extra_still_levels, GUARD_TIERS[0]);
     let r = choice.result.expect("the output is the probe");
     assert_eq!((r.width, r.height), (output.width, output.height));
@@ -395,7 +383,7 @@ fn a_larger_output_is_its_own_probe() {
     assert_eq!(choice.probes[0].copy, copy);
     assert_eq!(choice.probes[0].spacing, 1);
     assert!(choice.unprobed.is_none());
-    let again = syn.synthesize_to_host(&ctx, &choice.params).unwrap();
+    let again = syn.synthesize_to_host(&choice.params).unwrap();
     assert_eq!(again.coords, r.coords);
     // Over the largest probed side: the default schedule, unprobed, and it says why.
     let huge = SynthParams {
@@ -403,7 +391,7 @@ fn a_larger_output_is_its_own_probe() {
         height: 16,
         ..output.clone()
     };
-    let c = syn.choose_schedule(&ctx, &huge, 1.0).unwrap();
+    let c = syn.choose_schedule(&huge, 1.0).unwrap();
     assert_eq!((&c.params, c.probes.is_empty()), (&huge, true));
     assert!(
         c.describe(1.0).contains("over 2048 px"),
@@ -431,7 +419,7 @@ fn a_tileable_output_made_on_a_torus_is_guarded() {
         ..Default::default()
     };
     assert!(SynthPlan::new(a, &params).unwrap().torus.is_some());
-    let choice = syn.choose_schedule(&ctx, &params, 0.25).unwrap();
+    let choice = syn.choose_schedule(&params, 0.25).unwrap();
     let kept = choice.probes.last().expect("probed");
     assert_eq!(kept.spacing, 1, "measured on the output");
     let result = choice.result.expect("a periodic output is its own probe");

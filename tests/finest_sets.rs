@@ -101,8 +101,8 @@ fn lean_analysis_synthesizes_the_same_bytes() {
                 field: field.clone(),
                 ..SynthParams::default()
             };
-            let a = gpu_full.synthesize_to_host(ctx(), &params).unwrap();
-            let b = gpu_lean.synthesize_to_host(ctx(), &params).unwrap();
+            let a = gpu_full.synthesize_to_host(&params).unwrap();
+            let b = gpu_lean.synthesize_to_host(&params).unwrap();
             assert_eq!(
                 a, b,
                 "tileable {tileable}, field {field:?}: GPU outputs differ"
@@ -138,9 +138,9 @@ fn lean_analysis_synthesizes_the_same_bytes() {
             seed: 9,
             ..SynthParams::default()
         };
-        let b = gpu_lean.synthesize_to_host(ctx(), &params).unwrap();
+        let b = gpu_lean.synthesize_to_host(&params).unwrap();
         assert_eq!(
-            gpu_old.synthesize_to_host(ctx(), &params).unwrap(),
+            gpu_old.synthesize_to_host(&params).unwrap(),
             b,
             "tileable {tileable}: level 0 tables changed the GPU output"
         );
@@ -169,9 +169,7 @@ fn lean_analysis_synthesizes_the_same_atlas() {
     };
     let run = |a: &Arc<Analysis>| {
         let synth = GpuSynthesizer::new(ctx(), a.clone()).unwrap();
-        pipeline::synthesize(ctx(), &synth, &prep, &base, &[])
-            .unwrap()
-            .0
+        pipeline::synthesize(&synth, &prep, &base, &[]).unwrap().0
     };
     assert_eq!(run(&full), run(&lean), "atlas syntheses differ");
 }
@@ -194,14 +192,13 @@ fn lean_analysis_refuses_a_corrected_finest_level() {
         other => panic!("{what}: expected a refusal, got {other:?}"),
     };
     expect_refusal(
-        gpu_lean.synthesize_to_host(ctx(), &params).map(|_| ()),
+        gpu_lean.synthesize_to_host(&params).map(|_| ()),
         "GPU synthesis",
     );
     expect_refusal(synthesize_cpu(&lean, &params).map(|_| ()), "CPU synthesis");
     // Advection corrects the finest level every frame.
     expect_refusal(
         Advection::new(
-            ctx(),
             gpu_lean,
             &SynthParams {
                 width: 32,
@@ -215,7 +212,7 @@ fn lean_analysis_refuses_a_corrected_finest_level() {
     );
     // The full analysis takes the same parameters.
     let gpu_full = GpuSynthesizer::new(ctx(), full).unwrap();
-    gpu_full.synthesize_to_host(ctx(), &params).unwrap();
+    gpu_full.synthesize_to_host(&params).unwrap();
 }
 
 #[test]

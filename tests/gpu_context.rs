@@ -270,7 +270,7 @@ fn pipelines_prepared_ahead_of_time() {
             height: 16,
             ..Default::default()
         };
-        let out = s.synthesize_to_host(&ctx, &params).unwrap();
+        let out = s.synthesize_to_host(&params).unwrap();
         assert_eq!(out.colors.len(), 24 * 16);
         // A synthesizer's own preparation (the exact variants of a plan, here along a
         // field and with the identity field) changes nothing in the result.
@@ -290,9 +290,9 @@ fn pipelines_prepared_ahead_of_time() {
                 field: Some(field),
                 ..params.clone()
             };
-            let before = s.synthesize_to_host(&ctx, &p).unwrap();
-            s.prepare(&ctx, &p).unwrap();
-            assert_eq!(s.synthesize_to_host(&ctx, &p).unwrap(), before);
+            let before = s.synthesize_to_host(&p).unwrap();
+            s.prepare(&p).unwrap();
+            assert_eq!(s.synthesize_to_host(&p).unwrap(), before);
         }
     }
     ctx.take_uncaptured_errors().unwrap();
@@ -319,7 +319,7 @@ fn pipelines_of_a_plan_prepared_before_the_upload() {
     let cold = {
         let c = context();
         let s = texsyn::gpu::synth::GpuSynthesizer::new(&c, analysis.clone()).unwrap();
-        s.synthesize_to_host(&c, &params).unwrap()
+        s.synthesize_to_host(&params).unwrap()
     };
     let s = std::thread::scope(|scope| {
         let built = scope.spawn(|| ctx.prepare_synthesis(&analysis, &params));
@@ -327,7 +327,7 @@ fn pipelines_of_a_plan_prepared_before_the_upload() {
         built.join().unwrap().unwrap();
         s
     });
-    assert_eq!(s.synthesize_to_host(&ctx, &params).unwrap(), cold);
+    assert_eq!(s.synthesize_to_host(&params).unwrap(), cold);
     let bad = texsyn::SynthParams {
         width: 0,
         ..params.clone()

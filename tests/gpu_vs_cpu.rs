@@ -53,7 +53,7 @@ fn compare_pass_by_pass(a: Arc<Analysis>, params: &SynthParams) {
         if !(checked.insert((d.kind, d.level, d.params.k)) || finest) || gather {
             continue;
         }
-        let g = gpu.run_prefix(ctx(), params, i + 1).unwrap();
+        let g = gpu.run_prefix(params, i + 1).unwrap();
         assert_eq!(g.len(), cpu.len());
         let diff = g.iter().zip(&cpu).filter(|(x, y)| x != y).count();
         if let Some(k) = g.iter().zip(&cpu).position(|(x, y)| x != y) {
@@ -68,7 +68,7 @@ fn compare_pass_by_pass(a: Arc<Analysis>, params: &SynthParams) {
             d.kind, d.level
         );
     }
-    let host = gpu.synthesize_to_host(ctx(), params).unwrap();
+    let host = gpu.synthesize_to_host(params).unwrap();
     let reference = synthesize_cpu(&a, params).unwrap();
     assert_eq!(host, reference, "final coordinates and colours");
 }
@@ -154,7 +154,7 @@ fn k1_three_passes_custom_randomness_match_cpu() {
     };
     let gpu = GpuSynthesizer::new(ctx(), a.clone()).unwrap();
     assert_eq!(
-        gpu.synthesize_to_host(ctx(), &params).unwrap(),
+        gpu.synthesize_to_host(&params).unwrap(),
         synthesize_cpu(&a, &params).unwrap()
     );
 }
@@ -169,17 +169,14 @@ fn same_seed_same_bytes_other_seed_other_texture() {
         seed: 9,
         ..Default::default()
     };
-    let x = gpu.synthesize_to_host(ctx(), &p).unwrap();
-    let y = gpu.synthesize_to_host(ctx(), &p).unwrap();
+    let x = gpu.synthesize_to_host(&p).unwrap();
+    let y = gpu.synthesize_to_host(&p).unwrap();
     assert_eq!(x, y);
     let z = gpu
-        .synthesize_to_host(
-            ctx(),
-            &SynthParams {
-                seed: 10,
-                ..p.clone()
-            },
-        )
+        .synthesize_to_host(&SynthParams {
+            seed: 10,
+            ..p.clone()
+        })
         .unwrap();
     let same = x
         .coords
@@ -203,16 +200,15 @@ fn gpu_texture_matches_host_readback() {
         seed: 4,
         ..Default::default()
     };
-    let host = gpu.synthesize_to_host(ctx(), &p).unwrap();
-    let tex = gpu.synthesize(ctx(), &p).unwrap();
+    let host = gpu.synthesize_to_host(&p).unwrap();
+    let tex = gpu.synthesize(&p).unwrap();
     assert_eq!((tex.width, tex.height), (33, 17));
     assert_eq!(tex.texture.format(), wgpu::TextureFormat::Rgba8Unorm);
     // Encode into a caller's encoder twice; both results must be complete.
     let mut enc = ctx().device.create_command_encoder(&Default::default());
-    let t1 = gpu.encode(ctx(), &mut enc, &p).unwrap();
+    let t1 = gpu.encode(&mut enc, &p).unwrap();
     let t2 = gpu
         .encode(
-            ctx(),
             &mut enc,
             &SynthParams {
                 seed: 5,
@@ -259,7 +255,7 @@ fn gpu_texture_matches_host_readback() {
     assert_eq!(read(&tex.texture), host.colors);
     assert_eq!(read(&t1.texture), host.colors);
     let other = gpu
-        .synthesize_to_host(ctx(), &SynthParams { seed: 5, ..p })
+        .synthesize_to_host(&SynthParams { seed: 5, ..p })
         .unwrap();
     assert_eq!(read(&t2.texture), other.colors);
 }
@@ -324,7 +320,7 @@ fn every_distance_mode_matches_cpu() {
         };
         let gpu = GpuSynthesizer::new(ctx(), a.clone()).unwrap();
         assert_eq!(
-            gpu.synthesize_to_host(ctx(), &params).unwrap(),
+            gpu.synthesize_to_host(&params).unwrap(),
             synthesize_cpu(&a, &params).unwrap(),
             "{distance:?}, tileable {tileable}"
         );
@@ -354,7 +350,7 @@ fn qe_uploads_with_the_first_synthesis_that_reads_it() {
     };
     let mut outputs = Vec::new();
     for params in [&base, &projected, &finest, &base] {
-        let out = gpu.synthesize_to_host(ctx(), params).unwrap();
+        let out = gpu.synthesize_to_host(params).unwrap();
         assert_eq!(out, synthesize_cpu(&a, params).unwrap(), "{params:?}");
         outputs.push(out);
     }
@@ -393,7 +389,7 @@ fn windows_far_out_are_refused_not_overflowed() {
     };
     let gpu = GpuSynthesizer::new(ctx(), a.clone()).unwrap();
     assert_eq!(
-        gpu.synthesize_to_host(ctx(), &ok).unwrap(),
+        gpu.synthesize_to_host(&ok).unwrap(),
         synthesize_cpu(&a, &ok).unwrap()
     );
 }
@@ -449,7 +445,7 @@ fn aniso_identity_reproduces_isometric_exactly() {
         assert_eq!(r_an.colors, r_iso.colors, "tileable {tileable}: colours");
         // And on the GPU.
         let gpu = GpuSynthesizer::new(ctx(), a.clone()).unwrap();
-        assert_eq!(gpu.synthesize_to_host(ctx(), &an).unwrap(), r_an);
+        assert_eq!(gpu.synthesize_to_host(&an).unwrap(), r_an);
     }
 }
 
@@ -494,7 +490,7 @@ fn aniso_perspective_projected_distance_matches_cpu() {
     let a = analysis(false, 2);
     let gpu = GpuSynthesizer::new(ctx(), a.clone()).unwrap();
     assert_eq!(
-        gpu.synthesize_to_host(ctx(), &p).unwrap(),
+        gpu.synthesize_to_host(&p).unwrap(),
         synthesize_cpu(&a, &p).unwrap()
     );
 }
@@ -538,7 +534,7 @@ fn tileable_output_matches_cpu_and_wraps() {
     );
     compare_pass_by_pass(a.clone(), &torus);
     let gpu = GpuSynthesizer::new(ctx(), a.clone()).unwrap();
-    let out = gpu.synthesize_to_host(ctx(), &torus).unwrap();
+    let out = gpu.synthesize_to_host(&torus).unwrap();
     assert_eq!(out, synthesize_cpu(&a, &torus).unwrap());
     assert_eq!((out.width, out.height, out.coords.len()), (50, 37, 50 * 37));
     // Advection keeps the output's own periods.
@@ -763,7 +759,7 @@ fn windows_assemble_into_the_whole_output() {
             ..Default::default()
         };
         let maps = [map.clone()];
-        let whole = gpu.synthesize_with_maps(ctx(), &params, &maps).unwrap();
+        let whole = gpu.synthesize_with_maps(&params, &maps).unwrap();
         // Pieces are exact windows even when a standalone texture is asked for: a
         // standalone piece would not meet its neighbours.
         let standalone = SynthParams {
@@ -771,7 +767,7 @@ fn windows_assemble_into_the_whole_output() {
             ..params.clone()
         };
         let pieces = gpu
-            .synthesize_in_windows_sized(ctx(), &standalone, &maps, 16, &mut |_, _| {})
+            .synthesize_in_windows_sized(&standalone, &maps, 16, &mut |_, _| {})
             .unwrap();
         assert_eq!(
             pieces, whole,
@@ -780,13 +776,13 @@ fn windows_assemble_into_the_whole_output() {
         );
         let mut calls = Vec::new();
         let tiled = gpu
-            .synthesize_in_windows_sized(ctx(), &params, &maps, 16, &mut |d, n| calls.push((d, n)))
+            .synthesize_in_windows_sized(&params, &maps, 16, &mut |d, n| calls.push((d, n)))
             .unwrap();
         assert_eq!(calls.last(), Some(&(9, 9)), "3 x 3 windows");
         assert_eq!(tiled, whole, "field {:?}", params.field);
         // The automatic window size fits this small output in one piece.
         let auto = gpu
-            .synthesize_in_windows(ctx(), &params, &maps, |_, _| {})
+            .synthesize_in_windows(&params, &maps, |_, _| {})
             .unwrap();
         assert_eq!(auto, whole);
     }
@@ -795,7 +791,7 @@ fn windows_assemble_into_the_whole_output() {
         ..Default::default()
     };
     assert!(gpu
-        .synthesize_in_windows(ctx(), &periodic, &[], |_, _| {})
+        .synthesize_in_windows(&periodic, &[], |_, _| {})
         .is_err());
 }
 
@@ -866,7 +862,7 @@ fn skipped_pixels_leave_every_subpass_as_the_cpu_computes() {
             if !matches!(d.kind, PassKind::Correct | PassKind::CorrectAniso) || !level_end {
                 continue;
             }
-            let g = gpu.run_prefix(ctx(), &params, i + 1).unwrap();
+            let g = gpu.run_prefix(&params, i + 1).unwrap();
             let diff = g.iter().zip(&cpu).filter(|(x, y)| x != y).count();
             assert_eq!(
                 diff, 0,
@@ -879,7 +875,7 @@ fn skipped_pixels_leave_every_subpass_as_the_cpu_computes() {
         assert!(compared >= 5);
         // And the whole synthesis, colours included.
         assert_eq!(
-            gpu.synthesize_to_host(ctx(), &params).unwrap(),
+            gpu.synthesize_to_host(&params).unwrap(),
             synthesize_cpu(&a, &params).unwrap()
         );
     }

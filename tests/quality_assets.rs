@@ -102,7 +102,7 @@ fn standalone_texture_is_as_good_as_an_exact_window() {
             count(&standalone),
             count(&exact)
         );
-        let run = |p: &texsyn::SynthParams| gpu.synthesize_to_host(&ctx, p).unwrap();
+        let run = |p: &texsyn::SynthParams| gpu.synthesize_to_host(p).unwrap();
         let (e, s) = (run(&exact), run(&standalone));
         assert_ne!(
             e.coords, s.coords,
@@ -153,7 +153,7 @@ fn tileable_output_has_no_wrap_seam() {
                 tileable_output,
                 ..Default::default()
             };
-            let s = gpu.synthesize_to_host(&ctx, &p).unwrap();
+            let s = gpu.synthesize_to_host(&p).unwrap();
             let img = texsyn::quality::FloatImage {
                 width,
                 height,

@@ -223,21 +223,21 @@ fn atlas_synthesis_gpu_matches_cpu() {
     for &end in &checkpoints {
         run_cpu_surface(&a, &schedule[done..end], &mut cpu, &jac, &surface);
         done = end;
-        let gpu = synth.run_prefix(ctx(), &params, end).unwrap();
+        let gpu = synth.run_prefix(&params, end).unwrap();
         assert!(gpu == cpu, "GPU and CPU differ after dispatch {end}");
     }
     let cpu_out = texsyn::passes::synthesize_cpu(&a, &params).unwrap();
-    let gpu_out = synth.synthesize_to_host(ctx(), &params).unwrap();
+    let gpu_out = synth.synthesize_to_host(&params).unwrap();
     assert_eq!(gpu_out.coords, cpu_out.coords);
     assert_eq!(gpu_out.colors, cpu_out.colors);
     // Deterministic: the same bytes again; another seed differs.
     assert_eq!(
-        synth.synthesize_to_host(ctx(), &params).unwrap().colors,
+        synth.synthesize_to_host(&params).unwrap().colors,
         gpu_out.colors
     );
     let other = SynthParams { seed: 9, ..params };
     assert_ne!(
-        synth.synthesize_to_host(ctx(), &other).unwrap().colors,
+        synth.synthesize_to_host(&other).unwrap().colors,
         gpu_out.colors
     );
 }
@@ -253,8 +253,7 @@ fn seams_are_no_more_visible_than_texel_steps() {
         ("torus", Mesh::torus(1.0, 0.4, 32, 16)),
     ] {
         let prep = prepared(&mesh, 128, a.levels.len());
-        let (s, _) =
-            pipeline::synthesize(ctx(), &synth, &prep, &SynthParams::default(), &[]).unwrap();
+        let (s, _) = pipeline::synthesize(&synth, &prep, &SynthParams::default(), &[]).unwrap();
         let with = seam_report(&prep.atlas, &s.colors);
         // The same synthesis with every gutter texel copying itself: no indirection.
         let mut d = (*prep.domain).clone();
@@ -266,8 +265,7 @@ fn seams_are_no_more_visible_than_texel_steps() {
         }
         let mut plain = prep.clone();
         plain.domain = Arc::new(d);
-        let (s2, _) =
-            pipeline::synthesize(ctx(), &synth, &plain, &SynthParams::default(), &[]).unwrap();
+        let (s2, _) = pipeline::synthesize(&synth, &plain, &SynthParams::default(), &[]).unwrap();
         let without = seam_report(&prep.atlas, &s2.colors);
         eprintln!("{name}: with indirection {with:?}\n   without {without:?}");
         assert!(
@@ -293,7 +291,7 @@ fn open_meshes_and_bad_surface_inputs() {
     let prep = prepared(&plane, 64, a.levels.len());
     assert!(prep.report.boundary > 0);
     let synth = GpuSynthesizer::new(ctx(), a.clone()).unwrap();
-    pipeline::synthesize(ctx(), &synth, &prep, &SynthParams::default(), &[]).unwrap();
+    pipeline::synthesize(&synth, &prep, &SynthParams::default(), &[]).unwrap();
 
     let mut sphere = Mesh::uv_sphere(1.0, 12, 6);
     sphere.validate_and_repair().unwrap();

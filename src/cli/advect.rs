@@ -471,7 +471,7 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
     let time_synthesis = |p: &SynthParams| -> CliResult<Duration> {
         let t = Instant::now();
         synthesizer
-            .synthesize(&ctx, p)
+            .synthesize(p)
             .map_err(|e| super::synth::with_hint(e, size_hint))?;
         Ok(t.elapsed())
     };
@@ -481,7 +481,7 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
     time_full()?;
     let mut full = vec![time_full()?];
 
-    let mut adv = Advection::new(&ctx, synthesizer.clone(), &params, options)
+    let mut adv = Advection::new(synthesizer.clone(), &params, options)
         .map_err(|e| super::synth::with_hint(e, size_hint))?;
     let velocity_at = |t: u32| -> CliResult<Vec<[f32; 2]>> {
         match &surface {
@@ -510,7 +510,7 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
                     displacement: &[[f32; 2]],
                     figures: &mut texsyn::quality::TemporalFigures|
      -> CliResult<()> {
-        let rgba = adv.read_rgba8(&ctx)?;
+        let rgba = adv.read_rgba8()?;
         figures.push(
             to_float(w, h, bytemuck::cast_slice::<u8, [u8; 4]>(&rgba))?,
             displacement,
@@ -564,9 +564,9 @@ pub fn run(ui: &Ui, args: AdvectArgs) -> CliResult<()> {
         let v = velocity_at(t)?;
         let start = Instant::now();
         if args.per_pass {
-            passes.push(adv.profile_step(&ctx, &v, dt)?);
+            passes.push(adv.profile_step(&v, dt)?);
         } else {
-            adv.step(&ctx, &v, dt)?;
+            adv.step(&v, dt)?;
         }
         ctx.wait_idle()?;
         costs.push(start.elapsed());

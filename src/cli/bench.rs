@@ -258,13 +258,13 @@ pub fn run(ui: &Ui, args: BenchArgs) -> CliResult<()> {
         let row = check_output_size_hint(&ctx, w, h, BENCH_HINT).and_then(|()| {
             let gpu = time_runs(args.warmup, args.runs, || {
                 synthesizer
-                    .synthesize(&ctx, &params)
+                    .synthesize(&params)
                     .map_err(|e| with_hint(e, BENCH_HINT))?;
                 ctx.take_uncaptured_errors()
             })?;
             let whole = time_runs(args.warmup.min(1), args.runs, || {
                 synthesizer
-                    .synthesize_to_host(&ctx, &params)
+                    .synthesize_to_host(&params)
                     .map_err(|e| with_hint(e, BENCH_HINT))?;
                 ctx.take_uncaptured_errors()
             })?;
@@ -317,7 +317,7 @@ fn per_pass_table(
             args.warmup + args.runs
         ));
         let r = synthesizer
-            .profile(ctx, params)
+            .profile(params)
             .map_err(|e| with_hint(e, BENCH_HINT))?;
         ctx.take_uncaptured_errors()?;
         if i >= args.warmup {

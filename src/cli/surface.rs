@@ -449,12 +449,12 @@ pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
             factor: f,
         }) => {
             let params = pipeline::atlas_params(&prepared, &base);
-            let m = synthesizer
-                .synthesize_magnified_with_maps(&ctx, &params, hi, *hw, *hh, *f, &extra)?;
+            let m =
+                synthesizer.synthesize_magnified_with_maps(&params, hi, *hw, *hh, *f, &extra)?;
             (m.synthesis, m.colors, m.maps, (m.width, m.height))
         }
         None => {
-            let (s, maps) = pipeline::synthesize(&ctx, &synthesizer, &prepared, &base, &extra)?;
+            let (s, maps) = pipeline::synthesize(&synthesizer, &prepared, &base, &extra)?;
             let colors = s.colors.clone();
             (s, colors, maps, (n, n))
         }

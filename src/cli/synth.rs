@@ -576,7 +576,7 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
     if args.tileable_output && (width % 4 != 0 || height % 4 != 0) {
         // Each level's period is half the finer one's, rounded up: an odd period (or an
         // odd half) cannot be upsampled coherently across the wrap (`Torus`).
-        ui.info(match synthesizer.plan_for(&ctx, &params)?.torus {
+        ui.info(match synthesizer.plan_for(&params)?.torus {
             Some(t) => format!(
                 "tileable: synthesized on a {}x{} torus and resampled to {width}x{height} \
                  (sides that are multiples of 4 wrap cleanly{})",
@@ -603,18 +603,18 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
         });
     }
     // The library's check covers the whole pyramid (the one above, the finest level).
-    windowed |= !args.tileable_output && args.magnify.is_none() && !synthesizer.fits(&ctx, &params);
+    windowed |= !args.tileable_output && args.magnify.is_none() && !synthesizer.fits(&params);
     // The rest of the preparation (the pipelines are built: a field's Jacobians), before
     // the synthesis so that the summary times them apart. Windows build theirs as they go.
     let t = Instant::now();
     if !windowed {
-        synthesizer.prepare(&ctx, &params)?;
+        synthesizer.prepare(&params)?;
     }
     let prepare_time = t.elapsed();
     // The copy guard's probe (its synthesis is the result when it is the output's).
     let t = Instant::now();
     let choice = synthesizer
-        .choose_schedule(&ctx, &params, args.copy_budget)
+        .choose_schedule(&params, args.copy_budget)
         .map_err(cli_hint(args.tileable_output))?;
     let guard_time = (!choice.probes.is_empty()).then(|| t.elapsed());
     let mut guard_line = (!choice.probes.is_empty() || choice.unprobed.is_some())
@@ -695,7 +695,7 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
     {
         let t = Instant::now();
         let gpu = synthesizer
-            .synthesize_magnified(&ctx, &params, hi, *hw, *hh, *f)
+            .synthesize_magnified(&params, hi, *hw, *hh, *f)
             .map_err(cli_hint(args.tileable_output))?;
         ctx.take_uncaptured_errors()?;
         out_size = (gpu.width, gpu.height);
@@ -724,7 +724,7 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
                 factor: f,
             }) => {
                 let m = synthesizer
-                    .synthesize_magnified_with_maps(&ctx, &params, hi, *hw, *hh, *f, &maps)
+                    .synthesize_magnified_with_maps(&params, hi, *hw, *hh, *f, &maps)
                     .map_err(cli_hint(args.tileable_output))?;
                 (
                     m.synthesis.coords_f32(),
@@ -737,7 +737,7 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
             None if windowed => {
                 let start = Instant::now();
                 let (s, map_pixels) =
-                    synthesizer.synthesize_in_windows(&ctx, &params, &maps, |done, total| {
+                    synthesizer.synthesize_in_windows(&params, &maps, |done, total| {
                         ui.progress(format!(
                             "synthesizing {width}x{height} in windows: {done}/{total} done ({})",
                             fmt_duration(start.elapsed())
@@ -757,7 +757,7 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
                         (s, Vec::new())
                     }
                     _ => synthesizer
-                        .synthesize_with_maps(&ctx, &params, &maps)
+                        .synthesize_with_maps(&params, &maps)
                         .map_err(cli_hint(args.tileable_output))?,
                 };
                 (s.coords_f32(), width, height, s.colors, map_pixels)
@@ -802,7 +802,7 @@ pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {
     } else {
         let t = Instant::now();
         let gpu = synthesizer
-            .synthesize(&ctx, &params)
+            .synthesize(&params)
             .map_err(cli_hint(args.tileable_output))?;
         ctx.take_uncaptured_errors()?;
         let synth = t.elapsed();

@@ -74,14 +74,10 @@ impl Session {
     /// Synthesizes with other parameters (size, window, seed, ...), same exemplar. The
     /// jitter schedule goes through the copy guard ([`Self::schedule`]).
     pub fn run_with(&self, params: &SynthParams) -> Result<Texture> {
-        let choice = self
-            .synthesizer
-            .choose_schedule(&self.context, params, self.copy_budget)?;
+        let choice = self.synthesizer.choose_schedule(params, self.copy_budget)?;
         let s = match choice.result {
             Some(s) => s,
-            None => self
-                .synthesizer
-                .synthesize_to_host(&self.context, &choice.params)?,
+            None => self.synthesizer.synthesize_to_host(&choice.params)?,
         };
         Ok(Texture {
             synthesis: s,
@@ -95,7 +91,7 @@ impl Session {
     /// (if any, see [`Self::schedule`]) is read back.
     pub fn run_gpu(&self) -> Result<GpuSynthesis> {
         let params = self.schedule(&self.params)?;
-        self.synthesizer.synthesize(&self.context, &params)
+        self.synthesizer.synthesize(&params)
     }
 
     /// `params` with the jitter schedule the copy guard chooses for them
@@ -107,7 +103,7 @@ impl Session {
     pub fn schedule(&self, params: &SynthParams) -> Result<SynthParams> {
         Ok(self
             .synthesizer
-            .choose_schedule(&self.context, params, self.copy_budget)?
+            .choose_schedule(params, self.copy_budget)?
             .params)
     }
 
@@ -125,7 +121,7 @@ impl Session {
         encoder: &mut wgpu::CommandEncoder,
         params: &SynthParams,
     ) -> Result<GpuSynthesis> {
-        self.synthesizer.encode(&self.context, encoder, params)
+        self.synthesizer.encode(encoder, params)
     }
 
     /// Starts texture advection (frame 0 is synthesized with the session's parameters,
@@ -138,12 +134,7 @@ impl Session {
         &self,
         options: crate::gpu::advect::AdvectOptions,
     ) -> Result<crate::gpu::advect::Advection> {
-        crate::gpu::advect::Advection::new(
-            &self.context,
-            Arc::clone(&self.synthesizer),
-            &self.params,
-            options,
-        )
+        crate::gpu::advect::Advection::new(Arc::clone(&self.synthesizer), &self.params, options)
     }
 
     /// The exemplar analysis the session synthesizes from.
@@ -364,8 +355,8 @@ impl SessionBuilder {
         crate::passes::SynthPlan::new(&analysis, &self.params)?;
         let synthesizer = Arc::new(GpuSynthesizer::new(&context, Arc::new(analysis))?);
         // The pipelines (and the rasterized field) now, so that `run` only synthesizes.
-        if synthesizer.fits(&context, &self.params) {
-            synthesizer.prepare(&context, &self.params)?;
+        if synthesizer.fits(&self.params) {
+            synthesizer.prepare(&self.params)?;
         }
         Ok(Session {
             context,

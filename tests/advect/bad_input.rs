@@ -1,7 +1,6 @@
 //! Bad velocities, time steps, parameters and options are errors with what to change.
 
 use texsyn::gpu::advect::{quantize_velocity, AdvectOptions};
-use texsyn::gpu::GpuContext;
 use texsyn::SynthParams;
 
 use crate::common::ctx;
@@ -13,19 +12,16 @@ fn bad_velocities_and_time_steps() {
     let mut adv = FrameLoop::new(&Synth::gravel(32), &params, AdvectOptions::default()).adv;
     let good = vec![[0.5f32, 0.0]; 40 * 32];
     let err = |r: texsyn::Result<()>| r.unwrap_err().to_string();
-    assert!(err(adv.step(ctx(), &good[1..], 1.0)).contains("velocity field has"));
+    assert!(err(adv.step(&good[1..], 1.0)).contains("velocity field has"));
     for dt in [0.0, -1.0, f32::NAN, f32::INFINITY] {
-        assert!(
-            err(adv.step(ctx(), &good, dt)).contains("time step"),
-            "dt {dt}"
-        );
+        assert!(err(adv.step(&good, dt)).contains("time step"), "dt {dt}");
     }
     let mut nan = good.clone();
     nan[45] = [f32::NAN, 0.0];
-    assert!(err(adv.step(ctx(), &nan, 1.0)).contains("(5, 1)"));
+    assert!(err(adv.step(&nan, 1.0)).contains("(5, 1)"));
     // Huge velocities are clamped (documented), not an error or a panic.
     let huge = vec![[1e30f32, -1e30]; 40 * 32];
-    adv.step(ctx(), &huge, 1.0).unwrap();
+    adv.step(&huge, 1.0).unwrap();
     assert_eq!(
         quantize_velocity([1e30, -1e30], 1.0),
         [64 * 1024, -64 * 1024]
@@ -38,7 +34,7 @@ fn bad_velocities_and_time_steps() {
         ..params.clone()
     })
     .unwrap();
-    adv.step(ctx(), &good, 1.0).unwrap();
+    adv.step(&good, 1.0).unwrap();
     assert!(adv
         .set_params(&SynthParams {
             width: 41,
@@ -46,35 +42,26 @@ fn bad_velocities_and_time_steps() {
         })
         .is_err());
     assert!(adv
-        .set_options(
-            ctx(),
-            AdvectOptions {
-                threshold: -1.0,
-                ..AdvectOptions::default()
-            }
-        )
+        .set_options(AdvectOptions {
+            threshold: -1.0,
+            ..AdvectOptions::default()
+        })
         .is_err());
     for sets_every in [0, 17] {
         let e = adv
-            .set_options(
-                ctx(),
-                AdvectOptions {
-                    sets_every,
-                    ..AdvectOptions::default()
-                },
-            )
+            .set_options(AdvectOptions {
+                sets_every,
+                ..AdvectOptions::default()
+            })
             .unwrap_err()
             .to_string();
         assert!(e.contains("sets every"), "{e}");
     }
     let e = adv
-        .set_options(
-            ctx(),
-            AdvectOptions {
-                coarsest_passes: Some(17),
-                ..AdvectOptions::keep_look()
-            },
-        )
+        .set_options(AdvectOptions {
+            coarsest_passes: Some(17),
+            ..AdvectOptions::keep_look()
+        })
         .unwrap_err()
         .to_string();
     assert!(e.contains("17 on the coarsest advected level"), "{e}");
@@ -184,22 +171,15 @@ fn bad_velocities_and_time_steps() {
             "a share of 0 to 1",
         ),
     ] {
-        let e = adv.set_options(ctx(), o).unwrap_err().to_string();
+        let e = adv.set_options(o).unwrap_err().to_string();
         assert!(e.contains(needle), "{o:?}: {e}");
     }
-    adv.set_options(
-        ctx(),
-        AdvectOptions {
-            levels: 1,
-            upsample_finest: false,
-            ..AdvectOptions::default()
-        },
-    )
+    adv.set_options(AdvectOptions {
+        levels: 1,
+        upsample_finest: false,
+        ..AdvectOptions::default()
+    })
     .unwrap();
-    adv.step(ctx(), &good, 1.0).unwrap();
-    // Reading back through another context is an error, not a panic inside wgpu.
-    let other = GpuContext::headless().unwrap();
-    assert!(err(adv.read_rgba8(&other).map(|_| ())).contains("another GpuContext"));
-    assert!(err(adv.read_coords(&other).map(|_| ())).contains("another GpuContext"));
+    adv.step(&good, 1.0).unwrap();
     ctx().take_uncaptured_errors().unwrap();
 }

@@ -34,7 +34,7 @@ fn one_frame_fades_match_cpu_and_longer_ones_start_unfaded() {
         fade_change: 40,
         ..AdvectOptions::keep_look()
     };
-    let mut adv = Advection::new(ctx(), synth.clone(), &params, opts).unwrap();
+    let mut adv = Advection::new(synth.clone(), &params, opts).unwrap();
     let plan = adv.plan().clone();
     let jac = plan.jacobians();
     let mut cpu = cpu_frame0(&a, &plan, &opts, plan.advect_buffer_len(true));
@@ -42,8 +42,7 @@ fn one_frame_fades_match_cpu_and_longer_ones_start_unfaded() {
     let mut blended = 0usize;
     for f in 0..10u64 {
         if f == 8 {
-            adv.set_options(ctx(), AdvectOptions { fade: 4, ..opts })
-                .unwrap();
+            adv.set_options(AdvectOptions { fade: 4, ..opts }).unwrap();
         }
         let (v, q) = frame_velocities(&flow, w, h, f);
         let schedule = adv.frame_schedule();
@@ -55,15 +54,11 @@ fn one_frame_fades_match_cpu_and_longer_ones_start_unfaded() {
             f + 1,
             p.fade_src
         );
-        adv.step(ctx(), &v, 1.0).unwrap();
+        adv.step(&v, 1.0).unwrap();
         let out = run_cpu_frame(&a, &schedule, &mut cpu, &jac, &[], &q).unwrap();
-        assert!(
-            adv.read_coords(ctx()).unwrap() == cpu,
-            "frame {} differs",
-            f + 1
-        );
+        assert!(adv.read_coords().unwrap() == cpu, "frame {} differs", f + 1);
         let rgba: Vec<u8> = out.colors.iter().flatten().copied().collect();
-        assert_eq!(adv.read_rgba8(ctx()).unwrap(), rgba, "frame {}", f + 1);
+        assert_eq!(adv.read_rgba8().unwrap(), rgba, "frame {}", f + 1);
         if f < 8 {
             let state = &cpu[p.fade_dst as usize..][..3 * region];
             for (t, o) in (0..region).filter_map(|t| Some((t, window_index(&p, t, w, h)?))) {
@@ -134,11 +129,11 @@ fn fading_frames_match_cpu_and_fade_pops() {
         ..AdvectOptions::keep_look()
     };
     let flow = FAST_VORTEX;
-    let mut adv = Advection::new(ctx(), synth.clone(), &params, opts).unwrap();
+    let mut adv = Advection::new(synth.clone(), &params, opts).unwrap();
     let plan = adv.plan().clone();
     let jac = plan.jacobians();
     let mut cpu = cpu_frame0(&a, &plan, &opts, plan.advect_buffer_len(true));
-    assert!(adv.read_coords(ctx()).unwrap() == cpu, "frame 0 differs");
+    assert!(adv.read_coords().unwrap() == cpu, "frame 0 differs");
     let region = plan.fade_half_len() as usize / 3;
     let (mut faded, mut shown) = (0usize, 0usize);
     for f in 0..12u64 {
@@ -146,15 +141,11 @@ fn fading_frames_match_cpu_and_fade_pops() {
         let schedule = adv.frame_schedule();
         let fade = schedule.last().unwrap();
         assert_eq!(fade.kind, texsyn::passes::plan::PassKind::Fade);
-        adv.step(ctx(), &v, 1.0).unwrap();
+        adv.step(&v, 1.0).unwrap();
         let out = run_cpu_frame(&a, &schedule, &mut cpu, &jac, &[], &q).unwrap();
-        assert!(
-            adv.read_coords(ctx()).unwrap() == cpu,
-            "frame {} differs",
-            f + 1
-        );
+        assert!(adv.read_coords().unwrap() == cpu, "frame {} differs", f + 1);
         let rgba: Vec<u8> = out.colors.iter().flatten().copied().collect();
-        assert_eq!(adv.read_rgba8(ctx()).unwrap(), rgba, "frame {}", f + 1);
+        assert_eq!(adv.read_rgba8().unwrap(), rgba, "frame {}", f + 1);
         let p = &fade.params;
         let state = &cpu[p.fade_dst as usize..][..3 * region];
         for t in 0..region {
@@ -172,21 +163,16 @@ fn fading_frames_match_cpu_and_fade_pops() {
     assert!(faded > 0 && shown > 0, "no pixel faded");
     // A shorter fade between frames: the fades under way go on with it (at most 2 frames
     // left), GPU = CPU.
-    adv.set_options(ctx(), AdvectOptions { fade: 2, ..opts })
-        .unwrap();
+    adv.set_options(AdvectOptions { fade: 2, ..opts }).unwrap();
     let (v, q) = frame_velocities(&flow, w, h, 12);
     let schedule = adv.frame_schedule();
-    adv.step(ctx(), &v, 1.0).unwrap();
+    adv.step(&v, 1.0).unwrap();
     run_cpu_frame(&a, &schedule, &mut cpu, &jac, &[], &q).unwrap();
-    assert!(
-        adv.read_coords(ctx()).unwrap() == cpu,
-        "shorter fade differs"
-    );
+    assert!(adv.read_coords().unwrap() == cpu, "shorter fade differs");
     let dst = schedule.last().unwrap().params.fade_dst as usize;
     assert!((0..region).all(|t| (0..=2).contains(&cpu[dst + 3 * t + 2][0])));
     // Fading turned on between frames.
-    let mut adv =
-        Advection::new(ctx(), synth.clone(), &params, AdvectOptions::keep_look()).unwrap();
+    let mut adv = Advection::new(synth.clone(), &params, AdvectOptions::keep_look()).unwrap();
     let plain_len = plan.coord_buffer_len() as usize;
     let mut cpu = cpu_frame0(
         &a,
@@ -194,10 +180,10 @@ fn fading_frames_match_cpu_and_fade_pops() {
         &AdvectOptions::keep_look(),
         plan.advect_buffer_len(true),
     );
-    assert_eq!(adv.read_coords(ctx()).unwrap().len(), plain_len);
+    assert_eq!(adv.read_coords().unwrap().len(), plain_len);
     for f in 0..4u64 {
         if f == 2 {
-            adv.set_options(ctx(), opts).unwrap();
+            adv.set_options(opts).unwrap();
         }
         let (v, q) = frame_velocities(&flow, w, h, f);
         let schedule = adv.frame_schedule();
@@ -205,17 +191,16 @@ fn fading_frames_match_cpu_and_fade_pops() {
             let src = schedule.last().unwrap().params.fade_src;
             assert_eq!(src == 0, f == 2, "frame {}: fade_src {src}", f + 1);
         }
-        adv.step(ctx(), &v, 1.0).unwrap();
+        adv.step(&v, 1.0).unwrap();
         let out = run_cpu_frame(&a, &schedule, &mut cpu, &jac, &[], &q).unwrap();
-        let gpu = adv.read_coords(ctx()).unwrap();
+        let gpu = adv.read_coords().unwrap();
         assert!(gpu[..] == cpu[..gpu.len()], "frame {} differs", f + 1);
         let rgba: Vec<u8> = out.colors.iter().flatten().copied().collect();
-        assert_eq!(adv.read_rgba8(ctx()).unwrap(), rgba, "frame {}", f + 1);
+        assert_eq!(adv.read_rgba8().unwrap(), rgba, "frame {}", f + 1);
     }
     // Turned on between `encode_step` and the submission of its encoder: the recorded
     // frame is kept (the enlarged buffer is filled in the next frame's encoder).
-    let mut adv =
-        Advection::new(ctx(), synth.clone(), &params, AdvectOptions::keep_look()).unwrap();
+    let mut adv = Advection::new(synth.clone(), &params, AdvectOptions::keep_look()).unwrap();
     let mut cpu = cpu_frame0(
         &a,
         &plan,
@@ -227,13 +212,13 @@ fn fading_frames_match_cpu_and_fade_pops() {
         let schedule = adv.frame_schedule();
         let buffer = velocity_buffer(&v);
         let mut encoder = ctx().device.create_command_encoder(&Default::default());
-        adv.encode_step(ctx(), &mut encoder, &buffer, 1.0).unwrap();
+        adv.encode_step(&mut encoder, &buffer, 1.0).unwrap();
         if f == 0 {
-            adv.set_options(ctx(), opts).unwrap();
+            adv.set_options(opts).unwrap();
         }
         ctx().queue.submit([encoder.finish()]);
         run_cpu_frame(&a, &schedule, &mut cpu, &jac, &[], &q).unwrap();
-        let gpu = adv.read_coords(ctx()).unwrap();
+        let gpu = adv.read_coords().unwrap();
         assert!(
             gpu[..] == cpu[..gpu.len()],
             "encoded frame {} differs",

@@ -37,7 +37,7 @@ fn frames_leave_coherent_patches() {
     };
     let v = flow.sample(96, 96, 0.0).unwrap();
     let q: Vec<[i32; 2]> = v.iter().map(|&v| quantize_velocity(v, 1.0)).collect();
-    let mut adv = Advection::new(ctx(), synth, &params, on).unwrap();
+    let mut adv = Advection::new(synth, &params, on).unwrap();
     let plan = adv.plan().clone();
     let jac = plan.jacobians();
     // The level the frames correct most: the second-finest (the finest is upsampled).
@@ -56,7 +56,7 @@ fn frames_leave_coherent_patches() {
     let (mut skipped, mut differ, mut far) = (0usize, 0usize, 0usize);
     let frames = 12u64;
     for t in 0..frames {
-        let start = adv.read_coords(ctx()).unwrap();
+        let start = adv.read_coords().unwrap();
         // The share of the level's pixels a correction would skip, counted on the state
         // the frame starts from.
         skipped += (0..size[1])
@@ -78,9 +78,9 @@ fn frames_leave_coherent_patches() {
                 (a[0] - b[0]).abs().max((a[1] - b[1]).abs()) > 256
             })
             .count();
-        adv.step(ctx(), &v, 1.0).unwrap();
+        adv.step(&v, 1.0).unwrap();
         assert!(
-            adv.read_coords(ctx()).unwrap() == c_on,
+            adv.read_coords().unwrap() == c_on,
             "frame {} differs from the CPU",
             t + 1
         );
@@ -149,11 +149,11 @@ fn uniform_flow_of_whole_pixels_translates_exactly() {
                 },
                 ..Default::default()
             };
-            let mut adv = Advection::new(ctx(), synth.clone(), &params, o).unwrap();
-            let mut prev = adv.read_rgba8(ctx()).unwrap();
+            let mut adv = Advection::new(synth.clone(), &params, o).unwrap();
+            let mut prev = adv.read_rgba8().unwrap();
             for _ in 0..5 {
-                adv.step(ctx(), &v, 1.0).unwrap();
-                let cur = adv.read_rgba8(ctx()).unwrap();
+                adv.step(&v, 1.0).unwrap();
+                let cur = adv.read_rgba8().unwrap();
                 let warped = warped_diff(&prev, &cur, w, h, |_, _| (2.0, -1.0), 6);
                 let still = warped_diff(&prev, &cur, w, h, |_, _| (0.0, 0.0), 6);
                 let (mut same, mut total) = (0, 0);
@@ -233,16 +233,16 @@ fn periodic_outputs_wrap_around_under_a_flow() {
             passes: 0,
             ..AdvectOptions::default()
         };
-        let mut adv = Advection::new(ctx(), synth.clone(), &params, o).unwrap();
-        let mut cpu = adv.read_coords(ctx()).unwrap();
-        let mut prev = adv.read_rgba8(ctx()).unwrap();
+        let mut adv = Advection::new(synth.clone(), &params, o).unwrap();
+        let mut cpu = adv.read_coords().unwrap();
+        let mut prev = adv.read_rgba8().unwrap();
         for t in 0..3u64 {
             assert!(
                 step_matches_cpu(&mut adv, &a, t, &mut cpu, &v, 1.0),
                 "upsampled finest {upsample_finest}: frame {} differs from the CPU's",
                 t + 1
             );
-            let cur = adv.read_rgba8(ctx()).unwrap();
+            let cur = adv.read_rgba8().unwrap();
             // Every pixel, edges included, against the previous frame moved around the
             // torus.
             let (mut same, mut edge_same, mut edge_total) = (0usize, 0usize, 0usize);
@@ -329,13 +329,10 @@ fn vortex_run(options: impl FnOnce(&SynthParams) -> AdvectOptions, omega: f32) -
     let fresh = |seed| {
         let s = gravel
             .synth
-            .synthesize_to_host(
-                ctx(),
-                &SynthParams {
-                    seed,
-                    ..params.clone()
-                },
-            )
+            .synthesize_to_host(&SynthParams {
+                seed,
+                ..params.clone()
+            })
             .unwrap();
         s.colors.iter().flatten().copied().collect::<Vec<u8>>()
     };

@@ -25,11 +25,11 @@ fn advection_frames_gpu_match_cpu() {
         ..SynthParams::default()
     };
     let opts = AdvectOptions::default();
-    let mut adv = Advection::new(ctx(), synth.clone(), &params, opts).unwrap();
+    let mut adv = Advection::new(synth.clone(), &params, opts).unwrap();
     let plan: SynthPlan = adv.plan().clone();
     let jac = plan.jacobians();
     let mut cpu = cpu_frame0(&a, &plan, &opts, plan.coord_buffer_len());
-    assert!(adv.read_coords(ctx()).unwrap() == cpu, "frame 0 differs");
+    assert!(adv.read_coords().unwrap() == cpu, "frame 0 differs");
     let flows = [
         Flow::Vortex {
             cx: 0.3,
@@ -86,7 +86,7 @@ fn advection_frames_gpu_match_cpu() {
             },
             ..opts
         };
-        adv.set_options(ctx(), o).unwrap();
+        adv.set_options(o).unwrap();
         if f == 3 {
             adv.set_params(&SynthParams {
                 distance: texsyn::DistanceMode::Projected,
@@ -102,24 +102,24 @@ fn advection_frames_gpu_match_cpu() {
             "the levels above the advected ones are made again after set_params only"
         );
         let v = flow.sample(48, 40, f as f32).unwrap();
-        adv.step(ctx(), &v, 1.5).unwrap();
+        adv.step(&v, 1.5).unwrap();
         let q: Vec<[i32; 2]> = v.iter().map(|&v| quantize_velocity(v, 1.5)).collect();
         let out = run_cpu_frame(&a, &schedule, &mut cpu, &jac, &[], &q).unwrap();
         assert!(
-            adv.read_coords(ctx()).unwrap() == cpu,
+            adv.read_coords().unwrap() == cpu,
             "frame {} ({flow:?}) differs",
             f + 1
         );
         let rgba: Vec<u8> = out.colors.iter().flatten().copied().collect();
-        assert_eq!(adv.read_rgba8(ctx()).unwrap(), rgba);
+        assert_eq!(adv.read_rgba8().unwrap(), rgba);
     }
     // Frame 0 of `keep_look` makes the levels below the coarsest advected one as its
     // frames do; GPU = CPU on it and on a frame after it.
     let opts = AdvectOptions::keep_look();
-    let mut adv = Advection::new(ctx(), synth.clone(), &params, opts).unwrap();
+    let mut adv = Advection::new(synth.clone(), &params, opts).unwrap();
     let mut cpu = cpu_frame0(&a, adv.plan(), &opts, adv.plan().coord_buffer_len());
     assert!(
-        adv.read_coords(ctx()).unwrap() == cpu,
+        adv.read_coords().unwrap() == cpu,
         "keep_look: frame 0 differs"
     );
     // The same with anchored renewals (half of them upsampled, then all anchored),
@@ -131,7 +131,7 @@ fn advection_frames_gpu_match_cpu() {
         anchor_upsample: 0.5,
         ..opts
     };
-    let mut an = Advection::new(ctx(), synth.clone(), &params, anchored).unwrap();
+    let mut an = Advection::new(synth.clone(), &params, anchored).unwrap();
     let mut an_cpu = cpu.clone();
     let v = flows[0].sample(48, 40, 0.0).unwrap();
     assert!(
@@ -148,7 +148,7 @@ fn advection_frames_gpu_match_cpu() {
                 anchor_upsample: 0.0,
                 ..anchored
             };
-            an.set_options(ctx(), all).unwrap();
+            an.set_options(all).unwrap();
         }
         assert!(
             step_matches_cpu(&mut an, &a, t, &mut an_cpu, &v, 2.0),
@@ -167,8 +167,8 @@ fn advection_frames_gpu_match_cpu() {
     }
     .sample(48, 40, 0.0)
     .unwrap();
-    let mut a1 = Advection::new(ctx(), synth.clone(), &params, opts).unwrap();
-    let mut a2 = Advection::new(ctx(), synth, &params, opts).unwrap();
+    let mut a1 = Advection::new(synth.clone(), &params, opts).unwrap();
+    let mut a2 = Advection::new(synth, &params, opts).unwrap();
     // A non-finite component counts as 0 on its own, on both paths (the GPU zeroed the
     // whole velocity): the host gets the zeros, the buffer NaN and infinity.
     let (mut host, mut gpu) = (v.clone(), v.clone());
@@ -181,12 +181,12 @@ fn advection_frames_gpu_match_cpu() {
             quantize_velocity(host[i], 2.0)
         );
     }
-    a1.step(ctx(), &host, 2.0).unwrap();
+    a1.step(&host, 2.0).unwrap();
     let buffer = velocity_buffer(&gpu);
     let mut encoder = ctx().device.create_command_encoder(&Default::default());
-    a2.encode_step(ctx(), &mut encoder, &buffer, 2.0).unwrap();
+    a2.encode_step(&mut encoder, &buffer, 2.0).unwrap();
     ctx().queue.submit([encoder.finish()]);
-    assert!(a1.read_coords(ctx()).unwrap() == a2.read_coords(ctx()).unwrap());
+    assert!(a1.read_coords().unwrap() == a2.read_coords().unwrap());
 }
 
 /// The 16-bit float of `x`, which must be 0, NaN or a normal 16-bit value held exactly
@@ -275,27 +275,26 @@ fn caller_velocity_texture_gives_the_host_paths_frames() {
     let mut host = v.clone();
     host[5][1] = 0.0;
     let opts = AdvectOptions::default();
-    let mut reference = Advection::new(ctx(), synth.clone(), &params, opts).unwrap();
+    let mut reference = Advection::new(synth.clone(), &params, opts).unwrap();
     for dt in [1.0, 0.75] {
-        reference.step(ctx(), &host, dt).unwrap();
+        reference.step(&host, dt).unwrap();
     }
-    let want = reference.read_coords(ctx()).unwrap();
+    let want = reference.read_coords().unwrap();
     let usage = wgpu::TextureUsages::TEXTURE_BINDING;
     use wgpu::TextureFormat as F;
     for format in [F::Rg32Float, F::Rgba32Float, F::Rg16Float, F::Rgba16Float] {
         let t = texture(format, usage, [w, h]);
-        let mut adv = Advection::new(ctx(), synth.clone(), &params, opts).unwrap();
+        let mut adv = Advection::new(synth.clone(), &params, opts).unwrap();
         for dt in [1.0, 0.75] {
             let mut encoder = ctx().device.create_command_encoder(&Default::default());
-            adv.encode_step_texture(ctx(), &mut encoder, &t, dt)
-                .unwrap();
+            adv.encode_step_texture(&mut encoder, &t, dt).unwrap();
             ctx().queue.submit([encoder.finish()]);
         }
-        assert!(adv.read_coords(ctx()).unwrap() == want, "{format:?}");
+        assert!(adv.read_coords().unwrap() == want, "{format:?}");
     }
     // Refused before anything is recorded: the encoder still submits, the frame count
     // stays.
-    let mut adv = Advection::new(ctx(), synth, &params, opts).unwrap();
+    let mut adv = Advection::new(synth, &params, opts).unwrap();
     let bad = [
         (texture(F::Rg32Float, usage, [w + 1, h]), "41x36"),
         (texture(F::Rgba8Unorm, usage, [w, h]), "Rgba8Unorm"),
@@ -307,7 +306,7 @@ fn caller_velocity_texture_gives_the_host_paths_frames() {
     for (t, needle) in &bad {
         let mut encoder = ctx().device.create_command_encoder(&Default::default());
         let e = adv
-            .encode_step_texture(ctx(), &mut encoder, t, 1.0)
+            .encode_step_texture(&mut encoder, t, 1.0)
             .unwrap_err()
             .to_string();
         assert!(e.contains(needle), "{e}");
@@ -332,30 +331,30 @@ fn a_new_seed_between_frames_reaches_the_texture() {
         randomness: vec![0.8],
         ..params.clone()
     };
-    let mut changed = Advection::new(ctx(), synth.clone(), &params, opts).unwrap();
-    let mut kept = Advection::new(ctx(), synth.clone(), &params, opts).unwrap();
-    let fresh = Advection::new(ctx(), synth.clone(), &reseeded, opts).unwrap();
+    let mut changed = Advection::new(synth.clone(), &params, opts).unwrap();
+    let mut kept = Advection::new(synth.clone(), &params, opts).unwrap();
+    let fresh = Advection::new(synth.clone(), &reseeded, opts).unwrap();
     for adv in [&mut changed, &mut kept] {
-        adv.step(ctx(), &v, 1.0).unwrap();
+        adv.step(&v, 1.0).unwrap();
     }
     changed.set_params(&reseeded).unwrap();
     kept.set_params(&params).unwrap();
     let frame = kept.plan().advect_schedule(&a, &opts, 1);
     assert_eq!(kept.frame_schedule().len(), frame.len());
     assert!(changed.frame_schedule().len() > frame.len());
-    let mut cpu = changed.read_coords(ctx()).unwrap();
+    let mut cpu = changed.read_coords().unwrap();
     assert!(
         step_matches_cpu(&mut changed, &a, 1, &mut cpu, &v, 1.0),
         "the frame after set_params differs from the CPU mirror"
     );
-    kept.step(ctx(), &v, 1.0).unwrap();
+    kept.step(&v, 1.0).unwrap();
     let plan = changed.plan().clone();
     let coarsest = plan.levels.len() - opts.levels;
     assert!(coarsest > 0, "no level above the advected ones");
     let (c, f, k) = (
-        changed.read_coords(ctx()).unwrap(),
-        fresh.read_coords(ctx()).unwrap(),
-        kept.read_coords(ctx()).unwrap(),
+        changed.read_coords().unwrap(),
+        fresh.read_coords().unwrap(),
+        kept.read_coords().unwrap(),
     );
     let mut moved = 0;
     for l in &plan.levels[..coarsest] {
@@ -371,13 +370,13 @@ fn a_new_seed_between_frames_reaches_the_texture() {
     // Then the vortex renews the advected levels from them: the frames part from those
     // of the advection that kept its seed.
     let differing = |x: &Advection, y: &Advection| {
-        let (p, q) = (x.read_rgba8(ctx()).unwrap(), y.read_rgba8(ctx()).unwrap());
+        let (p, q) = (x.read_rgba8().unwrap(), y.read_rgba8().unwrap());
         p.chunks(4).zip(q.chunks(4)).filter(|(s, t)| s != t).count() as f64 / (64.0 * 64.0)
     };
     let first = differing(&changed, &kept);
     for _ in 0..10 {
         for adv in [&mut changed, &mut kept] {
-            adv.step(ctx(), &v, 1.0).unwrap();
+            adv.step(&v, 1.0).unwrap();
         }
     }
     let later = differing(&changed, &kept);
@@ -418,8 +417,8 @@ fn frames_continue_with_another_feature_weight() {
         ..SynthParams::default()
     };
     let opts = AdvectOptions::default();
-    let mut swapped = Advection::new(ctx(), strong.clone(), &params, opts).unwrap();
-    let mut kept = Advection::new(ctx(), strong.clone(), &params, opts).unwrap();
+    let mut swapped = Advection::new(strong.clone(), &params, opts).unwrap();
+    let mut kept = Advection::new(strong.clone(), &params, opts).unwrap();
     let v = Flow::Vortex {
         cx: 0.5,
         cy: 0.5,
@@ -429,40 +428,35 @@ fn frames_continue_with_another_feature_weight() {
     .unwrap();
     for adv in [&mut swapped, &mut kept] {
         for _ in 0..2 {
-            adv.step(ctx(), &v, 1.0).unwrap();
+            adv.step(&v, 1.0).unwrap();
         }
     }
-    swapped.set_synthesizer(ctx(), light.clone()).unwrap();
+    swapped.set_synthesizer(light.clone()).unwrap();
     assert!(Arc::ptr_eq(swapped.synthesizer(), &light));
-    let mut cpu = swapped.read_coords(ctx()).unwrap();
+    let mut cpu = swapped.read_coords().unwrap();
     assert!(
         step_matches_cpu(&mut swapped, &light_a, 2, &mut cpu, &v, 1.0),
         "the frame after the swap differs from the CPU mirror"
     );
-    kept.step(ctx(), &v, 1.0).unwrap();
+    kept.step(&v, 1.0).unwrap();
     assert_ne!(
-        swapped.read_coords(ctx()).unwrap(),
-        kept.read_coords(ctx()).unwrap(),
+        swapped.read_coords().unwrap(),
+        kept.read_coords().unwrap(),
         "the new feature weight changed nothing"
     );
     // Coordinates are positions in a 32x32 exemplar: a 40x40 one is refused, and so is
     // a synthesizer on another context (the advection's buffers live on its own); a
     // refused swap leaves the advection as it was.
-    let before = swapped.read_coords(ctx()).unwrap();
+    let before = swapped.read_coords().unwrap();
     let (_, other, _) = Synth::gravel(40).parts();
-    let e = swapped
-        .set_synthesizer(ctx(), other)
-        .unwrap_err()
-        .to_string();
+    let e = swapped.set_synthesizer(other).unwrap_err().to_string();
     assert!(e.contains("same size"), "{e}");
     let elsewhere = GpuContext::headless().unwrap();
     let foreign = Arc::new(GpuSynthesizer::new(&elsewhere, light_a.clone()).unwrap());
-    assert!(swapped
-        .set_synthesizer(&elsewhere, foreign.clone())
-        .is_err());
-    assert!(swapped.set_synthesizer(ctx(), foreign).is_err());
+    assert!(swapped.set_synthesizer(foreign.clone()).is_err());
+    assert!(swapped.set_synthesizer(foreign).is_err());
     assert!(Arc::ptr_eq(swapped.synthesizer(), &light));
-    assert_eq!(swapped.read_coords(ctx()).unwrap(), before);
+    assert_eq!(swapped.read_coords().unwrap(), before);
     let mut cpu = before;
     assert!(step_matches_cpu(
         &mut swapped,

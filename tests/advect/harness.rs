@@ -65,7 +65,7 @@ impl FrameLoop {
     /// Frame 0 of `opts` over `params` on the GPU.
     pub fn new(s: &Synth, params: &SynthParams, opts: AdvectOptions) -> Self {
         Self {
-            adv: Advection::new(ctx(), s.synth.clone(), params, opts).unwrap(),
+            adv: Advection::new(s.synth.clone(), params, opts).unwrap(),
             analysis: s.analysis.clone(),
             cpu: None,
         }
@@ -87,12 +87,12 @@ impl FrameLoop {
 
     /// The current frame's colours, RGBA8.
     pub fn rgba(&self) -> Vec<u8> {
-        self.adv.read_rgba8(ctx()).unwrap()
+        self.adv.read_rgba8().unwrap()
     }
 
     /// The GPU's coordinate buffer.
     pub fn coords(&self) -> Vec<[i32; 2]> {
-        self.adv.read_coords(ctx()).unwrap()
+        self.adv.read_coords().unwrap()
     }
 
     /// The CPU mirror's buffer.
@@ -105,14 +105,14 @@ impl FrameLoop {
     /// One frame on the GPU under velocities `v` (one per output pixel) and time step
     /// `dt`; the mirror, if any, is left behind.
     pub fn step(&mut self, v: &[[f32; 2]], dt: f32) {
-        self.adv.step(ctx(), v, dt).unwrap();
+        self.adv.step(v, dt).unwrap();
     }
 
     /// One frame on the GPU and the same frame (the advection's own schedule) on the
     /// mirror: the mirror's output.
     pub fn step_mirrored(&mut self, v: &[[f32; 2]], dt: f32) -> Synthesis {
         let schedule = self.adv.frame_schedule();
-        self.adv.step(ctx(), v, dt).unwrap();
+        self.adv.step(v, dt).unwrap();
         let jac = self.adv.plan().jacobians();
         let q: Vec<[i32; 2]> = v.iter().map(|&v| quantize_velocity(v, dt)).collect();
         let analysis = self.analysis.clone();
@@ -173,11 +173,11 @@ pub fn step_matches_cpu(
     // The advection's own schedule: after a change of parameters or analysis it first
     // makes the levels above the advected ones again.
     let schedule = adv.frame_schedule();
-    adv.step(ctx(), v, dt).unwrap();
+    adv.step(v, dt).unwrap();
     let plan = adv.plan();
     let q: Vec<[i32; 2]> = v.iter().map(|&v| quantize_velocity(v, dt)).collect();
     run_cpu_frame(a, &schedule, cpu, &plan.jacobians(), &[], &q);
-    adv.read_coords(ctx()).unwrap() == cpu
+    adv.read_coords().unwrap() == cpu
 }
 
 /// Synthesis parameters of a `w` x `h` output.

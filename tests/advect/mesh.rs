@@ -5,7 +5,6 @@ use texsyn::gpu::advect::{quantize_velocity, AdvectOptions, Advection};
 use texsyn::passes::run_cpu_frame;
 use texsyn::SynthParams;
 
-use crate::common::ctx;
 use crate::harness::*;
 
 /// Advection over a surface atlas: velocities from 3D vectors projected into the atlas,
@@ -23,7 +22,7 @@ fn surface_advection_gpu_matches_cpu() {
     let prep = texsyn::surface::pipeline::prepare(&mesh, a.levels.len(), &opts).unwrap();
     let params = texsyn::surface::pipeline::atlas_params(&prep, &SynthParams::default());
     let o = AdvectOptions::default();
-    let mut adv = Advection::new(ctx(), synth, &params, o).unwrap();
+    let mut adv = Advection::new(synth, &params, o).unwrap();
     let plan = adv.plan().clone();
     let jac = plan.jacobians();
     let surface = plan.surface_words().0;
@@ -59,14 +58,14 @@ fn surface_advection_gpu_matches_cpu() {
             anchor_upsample: if f == 4 { 0.5 } else { 0.0 },
             ..o
         };
-        adv.set_options(ctx(), o).unwrap();
+        adv.set_options(o).unwrap();
         let s = adv.frame_schedule();
-        adv.step(ctx(), &v, 1.0).unwrap();
+        adv.step(&v, 1.0).unwrap();
         let out = run_cpu_frame(&a, &s, &mut cpu, &jac, &surface, &q).unwrap();
-        let gpu = adv.read_coords(ctx()).unwrap();
+        let gpu = adv.read_coords().unwrap();
         assert!(gpu[..] == cpu[..gpu.len()], "frame {} differs", f + 1);
         let rgba: Vec<u8> = out.colors.iter().flatten().copied().collect();
-        assert_eq!(adv.read_rgba8(ctx()).unwrap(), rgba, "frame {}", f + 1);
+        assert_eq!(adv.read_rgba8().unwrap(), rgba, "frame {}", f + 1);
     }
     // Per-vertex vectors: the wrong count and NaN are errors.
     let n = prep.atlas.mesh.positions.len();

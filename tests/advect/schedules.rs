@@ -52,26 +52,23 @@ fn frames_build_no_pipelines_after_new() {
             ..AdvectOptions::default()
         },
     ] {
-        let mut adv = Advection::new(&own, synth.clone(), &params, options).unwrap();
+        let mut adv = Advection::new(synth.clone(), &params, options).unwrap();
         let built = own.built_pipelines();
         assert!(built > 0);
         for _ in 0..20 {
-            adv.step(&own, &v, 1.0).unwrap();
+            adv.step(&v, 1.0).unwrap();
         }
         assert_eq!(own.built_pipelines(), built, "{options:?}");
         // Options changed between frames: built by set_options, not by the frames.
-        adv.set_options(
-            &own,
-            AdvectOptions {
-                fade: 1,
-                anchor_spacing: 4,
-                ..options
-            },
-        )
+        adv.set_options(AdvectOptions {
+            fade: 1,
+            anchor_spacing: 4,
+            ..options
+        })
         .unwrap();
         let built = own.built_pipelines();
         for _ in 0..20 {
-            adv.step(&own, &v, 1.0).unwrap();
+            adv.step(&v, 1.0).unwrap();
         }
         assert_eq!(
             own.built_pipelines(),
