@@ -1,8 +1,7 @@
 //! Fading renewals in (`AdvectOptions::fade`): GPU = CPU, the pop test, fades turned on
 //! or shortened between frames.
 
-use texsyn::gpu::advect::{AdvectOptions, Advection};
-use texsyn::passes::run_cpu_frame;
+use texsyn::gpu::advect::AdvectOptions;
 use texsyn::SynthParams;
 
 use crate::common::ctx;
@@ -21,32 +20,24 @@ fn window_index(p: &texsyn::passes::common::PassParams, t: usize, w: u32, h: u32
 /// their texel), and longer fades after them start every pixel unfaded.
 #[test]
 fn one_frame_fades_match_cpu_and_longer_ones_start_unfaded() {
-    let (a, synth, _) = Synth::gravel(32).parts();
+    let gravel = Synth::gravel(32);
     let (w, h) = (48u32, 40u32);
-    let params = SynthParams {
-        width: w,
-        height: h,
-        ..SynthParams::default()
-    };
+    let params = output(w, h);
     let flow = FAST_VORTEX;
     let opts = AdvectOptions {
         fade: 1,
         fade_change: 40,
         ..AdvectOptions::keep_look()
     };
-    let mut adv = Advection::new(synth.clone(), &params, opts).unwrap();
-    let plan = adv.plan().clone();
-    let jac = plan.jacobians();
-    let mut cpu = cpu_frame0(&a, &plan, &opts, plan.advect_buffer_len(true));
-    let region = plan.fade_half_len() as usize / 3;
+    let mut frames = FrameLoop::mirrored_with_fade_room(&gravel, &params, opts);
+    let region = frames.plan().fade_half_len() as usize / 3;
     let mut blended = 0usize;
     for f in 0..10u64 {
         if f == 8 {
-            adv.set_options(AdvectOptions { fade: 4, ..opts }).unwrap();
+            frames.set_options(AdvectOptions { fade: 4, ..opts });
         }
-        let (v, q) = frame_velocities(&flow, w, h, f);
-        let schedule = adv.frame_schedule();
-        let p = schedule.last().unwrap().params;
+        let (v, _) = frame_velocities(&flow, w, h, f);
+        let p = frames.adv.frame_schedule().last().unwrap().params;
         assert_eq!(
             p.fade_src == 0,
             f == 8,
@@ -54,15 +45,17 @@ fn one_frame_fades_match_cpu_and_longer_ones_start_unfaded() {
             f + 1,
             p.fade_src
         );
-        adv.step(&v, 1.0).unwrap();
-        let out = run_cpu_frame(&a, &schedule, &mut cpu, &jac, &[], &q).unwrap();
-        assert!(adv.read_coords().unwrap() == cpu, "frame {} differs", f + 1);
-        let rgba: Vec<u8> = out.colors.iter().flatten().copied().collect();
-        assert_eq!(adv.read_rgba8().unwrap(), rgba, "frame {}", f + 1);
+        let out = frames.step_mirrored(&v, 1.0);
+        assert!(frames.matches_mirror(), "frame {} differs", f + 1);
+        assert_eq!(frames.rgba(), rgba8(&out), "frame {}", f + 1);
         if f < 8 {
-            let state = &cpu[p.fade_dst as usize..][..3 * region];
+            let state = &frames.cpu()[p.fade_dst as usize..][..3 * region];
             for (t, o) in (0..region).filter_map(|t| Some((t, window_index(&p, t, w, h)?))) {
-                let texel = texsyn::passes::gather_aniso::color_at(&p, &a.colors, state[3 * t]);
+                let texel = texsyn::passes::gather_aniso::color_at(
+                    &p,
+                    &gravel.analysis.colors,
+                    state[3 * t],
+                );
                 blended += (out.colors[o] != texel) as usize;
             }
         }
@@ -115,13 +108,12 @@ fn fade_change_sets_the_pop_test() {
 /// starts every pixel unfaded, and the frames after it read the state.
 #[test]
 fn fading_frames_match_cpu_and_fade_pops() {
-    let (a, synth, _) = Synth::gravel(32).parts();
+    let gravel = Synth::gravel(32);
+    let a = gravel.analysis.clone();
     let (w, h) = (48u32, 40u32);
     let params = SynthParams {
-        width: w,
-        height: h,
         origin: [5, -3],
-        ..SynthParams::default()
+        ..output(w, h)
     };
     let n = 4u32;
     let opts = AdvectOptions {
@@ -129,25 +121,21 @@ fn fading_frames_match_cpu_and_fade_pops() {
         ..AdvectOptions::keep_look()
     };
     let flow = FAST_VORTEX;
-    let mut adv = Advection::new(synth.clone(), &params, opts).unwrap();
-    let plan = adv.plan().clone();
-    let jac = plan.jacobians();
-    let mut cpu = cpu_frame0(&a, &plan, &opts, plan.advect_buffer_len(true));
-    assert!(adv.read_coords().unwrap() == cpu, "frame 0 differs");
+    let mut frames = FrameLoop::mirrored_with_fade_room(&gravel, &params, opts);
+    let plan = frames.plan();
+    assert!(frames.matches_mirror(), "frame 0 differs");
     let region = plan.fade_half_len() as usize / 3;
     let (mut faded, mut shown) = (0usize, 0usize);
     for f in 0..12u64 {
-        let (v, q) = frame_velocities(&flow, w, h, f);
-        let schedule = adv.frame_schedule();
+        let (v, _) = frame_velocities(&flow, w, h, f);
+        let schedule = frames.adv.frame_schedule();
         let fade = schedule.last().unwrap();
         assert_eq!(fade.kind, texsyn::passes::plan::PassKind::Fade);
-        adv.step(&v, 1.0).unwrap();
-        let out = run_cpu_frame(&a, &schedule, &mut cpu, &jac, &[], &q).unwrap();
-        assert!(adv.read_coords().unwrap() == cpu, "frame {} differs", f + 1);
-        let rgba: Vec<u8> = out.colors.iter().flatten().copied().collect();
-        assert_eq!(adv.read_rgba8().unwrap(), rgba, "frame {}", f + 1);
+        let out = frames.step_mirrored(&v, 1.0);
+        assert!(frames.matches_mirror(), "frame {} differs", f + 1);
+        assert_eq!(frames.rgba(), rgba8(&out), "frame {}", f + 1);
         let p = &fade.params;
-        let state = &cpu[p.fade_dst as usize..][..3 * region];
+        let state = &frames.cpu()[p.fade_dst as usize..][..3 * region];
         for t in 0..region {
             let left = state[3 * t + 2][0];
             assert!((0..=n as i32).contains(&left), "{left} frames left");
@@ -163,64 +151,47 @@ fn fading_frames_match_cpu_and_fade_pops() {
     assert!(faded > 0 && shown > 0, "no pixel faded");
     // A shorter fade between frames: the fades under way go on with it (at most 2 frames
     // left), GPU = CPU.
-    adv.set_options(AdvectOptions { fade: 2, ..opts }).unwrap();
-    let (v, q) = frame_velocities(&flow, w, h, 12);
-    let schedule = adv.frame_schedule();
-    adv.step(&v, 1.0).unwrap();
-    run_cpu_frame(&a, &schedule, &mut cpu, &jac, &[], &q).unwrap();
-    assert!(adv.read_coords().unwrap() == cpu, "shorter fade differs");
-    let dst = schedule.last().unwrap().params.fade_dst as usize;
+    frames.set_options(AdvectOptions { fade: 2, ..opts });
+    let (v, _) = frame_velocities(&flow, w, h, 12);
+    let dst = frames.adv.frame_schedule().last().unwrap().params.fade_dst as usize;
+    frames.step_mirrored(&v, 1.0);
+    assert!(frames.matches_mirror(), "shorter fade differs");
+    let cpu = frames.cpu();
     assert!((0..region).all(|t| (0..=2).contains(&cpu[dst + 3 * t + 2][0])));
     // Fading turned on between frames.
-    let mut adv = Advection::new(synth.clone(), &params, AdvectOptions::keep_look()).unwrap();
-    let plain_len = plan.coord_buffer_len() as usize;
-    let mut cpu = cpu_frame0(
-        &a,
-        &plan,
-        &AdvectOptions::keep_look(),
-        plan.advect_buffer_len(true),
-    );
-    assert_eq!(adv.read_coords().unwrap().len(), plain_len);
+    let mut frames =
+        FrameLoop::mirrored_with_fade_room(&gravel, &params, AdvectOptions::keep_look());
+    assert_eq!(frames.coords().len(), plan.coord_buffer_len() as usize);
     for f in 0..4u64 {
         if f == 2 {
-            adv.set_options(opts).unwrap();
+            frames.set_options(opts);
         }
-        let (v, q) = frame_velocities(&flow, w, h, f);
-        let schedule = adv.frame_schedule();
+        let (v, _) = frame_velocities(&flow, w, h, f);
         if f >= 2 {
-            let src = schedule.last().unwrap().params.fade_src;
+            let src = frames.adv.frame_schedule().last().unwrap().params.fade_src;
             assert_eq!(src == 0, f == 2, "frame {}: fade_src {src}", f + 1);
         }
-        adv.step(&v, 1.0).unwrap();
-        let out = run_cpu_frame(&a, &schedule, &mut cpu, &jac, &[], &q).unwrap();
-        let gpu = adv.read_coords().unwrap();
-        assert!(gpu[..] == cpu[..gpu.len()], "frame {} differs", f + 1);
-        let rgba: Vec<u8> = out.colors.iter().flatten().copied().collect();
-        assert_eq!(adv.read_rgba8().unwrap(), rgba, "frame {}", f + 1);
+        let out = frames.step_mirrored(&v, 1.0);
+        assert!(frames.matches_mirror_start(), "frame {} differs", f + 1);
+        assert_eq!(frames.rgba(), rgba8(&out), "frame {}", f + 1);
     }
     // Turned on between `encode_step` and the submission of its encoder: the recorded
     // frame is kept (the enlarged buffer is filled in the next frame's encoder).
-    let mut adv = Advection::new(synth.clone(), &params, AdvectOptions::keep_look()).unwrap();
-    let mut cpu = cpu_frame0(
-        &a,
-        &plan,
-        &AdvectOptions::keep_look(),
-        plan.advect_buffer_len(true),
-    );
+    let mut frames =
+        FrameLoop::mirrored_with_fade_room(&gravel, &params, AdvectOptions::keep_look());
     for f in 0..3u64 {
-        let (v, q) = frame_velocities(&flow, w, h, f);
-        let schedule = adv.frame_schedule();
+        let (v, _) = frame_velocities(&flow, w, h, f);
         let buffer = velocity_buffer(&v);
-        let mut encoder = ctx().device.create_command_encoder(&Default::default());
-        adv.encode_step(&mut encoder, &buffer, 1.0).unwrap();
-        if f == 0 {
-            adv.set_options(opts).unwrap();
-        }
-        ctx().queue.submit([encoder.finish()]);
-        run_cpu_frame(&a, &schedule, &mut cpu, &jac, &[], &q).unwrap();
-        let gpu = adv.read_coords().unwrap();
+        frames.step_mirrored_with(&v, 1.0, |adv| {
+            let mut encoder = ctx().device.create_command_encoder(&Default::default());
+            adv.encode_step(&mut encoder, &buffer, 1.0).unwrap();
+            if f == 0 {
+                adv.set_options(opts).unwrap();
+            }
+            ctx().queue.submit([encoder.finish()]);
+        });
         assert!(
-            gpu[..] == cpu[..gpu.len()],
+            frames.matches_mirror_start(),
             "encoded frame {} differs",
             f + 1
         );

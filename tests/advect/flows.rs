@@ -2,7 +2,7 @@
 //! vortices keep the texture and its sharpness; the Lamb-Oseen vortex's profile.
 
 use texsyn::flow::Flow;
-use texsyn::gpu::advect::{quantize_velocity, AdvectOptions, Advection};
+use texsyn::gpu::advect::{quantize_velocity, AdvectOptions};
 use texsyn::passes::run_cpu_frame;
 use texsyn::quality::texture_energy;
 use texsyn::SynthParams;
@@ -18,12 +18,9 @@ use crate::harness::*;
 /// without it in 0.5% of them, by more than a pixel in 0.01%.
 #[test]
 fn frames_leave_coherent_patches() {
-    let (a, synth, _) = Synth::gravel(64).parts();
-    let params = SynthParams {
-        width: 96,
-        height: 96,
-        ..SynthParams::default()
-    };
+    let gravel = Synth::gravel(64);
+    let a = gravel.analysis.clone();
+    let params = output(96, 96);
     let on = AdvectOptions::default();
     assert!(on.skip_coherent);
     let off = AdvectOptions {
@@ -37,8 +34,8 @@ fn frames_leave_coherent_patches() {
     };
     let v = flow.sample(96, 96, 0.0).unwrap();
     let q: Vec<[i32; 2]> = v.iter().map(|&v| quantize_velocity(v, 1.0)).collect();
-    let mut adv = Advection::new(synth, &params, on).unwrap();
-    let plan = adv.plan().clone();
+    let mut frames = FrameLoop::new(&gravel, &params, on);
+    let plan = frames.plan();
     let jac = plan.jacobians();
     // The level the frames correct most: the second-finest (the finest is upsampled).
     let top = plan.levels.len() - 2;
@@ -54,9 +51,9 @@ fn frames_leave_coherent_patches() {
     assert!(!corrections.is_empty());
     assert!(corrections.iter().all(|d| d.params.coherent_skip == 1));
     let (mut skipped, mut differ, mut far) = (0usize, 0usize, 0usize);
-    let frames = 12u64;
-    for t in 0..frames {
-        let start = adv.read_coords().unwrap();
+    let count = 12u64;
+    for t in 0..count {
+        let start = frames.coords();
         // The share of the level's pixels a correction would skip, counted on the state
         // the frame starts from.
         skipped += (0..size[1])
@@ -78,14 +75,14 @@ fn frames_leave_coherent_patches() {
                 (a[0] - b[0]).abs().max((a[1] - b[1]).abs()) > 256
             })
             .count();
-        adv.step(&v, 1.0).unwrap();
+        frames.step(&v, 1.0);
         assert!(
-            adv.read_coords().unwrap() == c_on,
+            frames.coords() == c_on,
             "frame {} differs from the CPU",
             t + 1
         );
     }
-    let total = (frames as usize * n) as f64;
+    let total = (count as usize * n) as f64;
     let (skipped, differ) = (skipped as f64 / total, differ as f64 / total);
     eprintln!(
         "coherent interiors {skipped:.3}, pixels that differ {differ:.4}, by more than a pixel {:.4}",
@@ -118,13 +115,9 @@ fn frames_leave_coherent_patches() {
 /// Either way the frames differ far less than unwarped ones.
 #[test]
 fn uniform_flow_of_whole_pixels_translates_exactly() {
-    let (_a, synth, _) = Synth::gravel(64).parts();
+    let gravel = Synth::gravel(64);
     let (w, h) = (96u32, 80u32);
-    let params = SynthParams {
-        width: w,
-        height: h,
-        ..SynthParams::default()
-    };
+    let params = output(w, h);
     let v = Flow::Uniform { vx: 2.0, vy: -1.0 }
         .sample(w, h, 0.0)
         .unwrap();
@@ -149,13 +142,10 @@ fn uniform_flow_of_whole_pixels_translates_exactly() {
                 },
                 ..Default::default()
             };
-            let mut adv = Advection::new(synth.clone(), &params, o).unwrap();
-            let mut prev = adv.read_rgba8().unwrap();
-            for _ in 0..5 {
-                adv.step(&v, 1.0).unwrap();
-                let cur = adv.read_rgba8().unwrap();
-                let warped = warped_diff(&prev, &cur, w, h, |_, _| (2.0, -1.0), 6);
-                let still = warped_diff(&prev, &cur, w, h, |_, _| (0.0, 0.0), 6);
+            let mut frames = FrameLoop::new(&gravel, &params, o);
+            frames.run(5, &v, 1.0, |_, prev, cur| {
+                let warped = warped_diff(prev, cur, w, h, |_, _| (2.0, -1.0), 6);
+                let still = warped_diff(prev, cur, w, h, |_, _| (0.0, 0.0), 6);
                 let (mut same, mut total) = (0, 0);
                 for y in 6..h - 6 {
                     for x in 6..w - 6 {
@@ -199,8 +189,7 @@ fn uniform_flow_of_whole_pixels_translates_exactly() {
                      keep_look {keep_look}, passes {passes}: warped {warped}, unwarped \
                      {still}, identical {same}"
                 );
-                prev = cur;
-            }
+            });
         }
     }
 }
@@ -212,13 +201,11 @@ fn uniform_flow_of_whole_pixels_translates_exactly() {
 /// and upsampled.
 #[test]
 fn periodic_outputs_wrap_around_under_a_flow() {
-    let (a, synth, _) = Synth::gravel(32).parts();
+    let gravel = Synth::gravel(32);
     let (w, h) = (48u32, 40u32);
     let params = SynthParams {
-        width: w,
-        height: h,
         tileable_output: true,
-        ..SynthParams::default()
+        ..output(w, h)
     };
     let (vx, vy) = (3i32, -2i32);
     let v = Flow::Uniform {
@@ -233,16 +220,15 @@ fn periodic_outputs_wrap_around_under_a_flow() {
             passes: 0,
             ..AdvectOptions::default()
         };
-        let mut adv = Advection::new(synth.clone(), &params, o).unwrap();
-        let mut cpu = adv.read_coords().unwrap();
-        let mut prev = adv.read_rgba8().unwrap();
+        let mut frames = FrameLoop::new(&gravel, &params, o).mirroring_the_gpu();
+        let mut prev = frames.rgba();
         for t in 0..3u64 {
             assert!(
-                step_matches_cpu(&mut adv, &a, t, &mut cpu, &v, 1.0),
+                frames.step_matches_mirror(t, &v, 1.0),
                 "upsampled finest {upsample_finest}: frame {} differs from the CPU's",
                 t + 1
             );
-            let cur = adv.read_rgba8().unwrap();
+            let cur = frames.rgba();
             // Every pixel, edges included, against the previous frame moved around the
             // torus.
             let (mut same, mut edge_same, mut edge_total) = (0usize, 0usize, 0usize);

@@ -4,12 +4,10 @@
 
 use std::sync::Arc;
 
-use texsyn::analysis::{analyze, AnalysisOptions};
+use texsyn::analysis::AnalysisOptions;
 use texsyn::flow::Flow;
-use texsyn::gpu::advect::{quantize_velocity, AdvectOptions, Advection};
+use texsyn::gpu::advect::{quantize_velocity, AdvectOptions};
 use texsyn::gpu::{synth::GpuSynthesizer, GpuContext};
-use texsyn::passes::plan::SynthPlan;
-use texsyn::passes::run_cpu_frame;
 use texsyn::SynthParams;
 
 use crate::common::{self, ctx};
@@ -17,19 +15,15 @@ use crate::harness::*;
 
 #[test]
 fn advection_frames_gpu_match_cpu() {
-    let (a, synth, _) = Synth::gravel(32).parts();
+    let gravel = Synth::gravel(32);
+    let a = gravel.analysis.clone();
     let params = SynthParams {
-        width: 48,
-        height: 40,
         origin: [5, -3],
-        ..SynthParams::default()
+        ..output(48, 40)
     };
     let opts = AdvectOptions::default();
-    let mut adv = Advection::new(synth.clone(), &params, opts).unwrap();
-    let plan: SynthPlan = adv.plan().clone();
-    let jac = plan.jacobians();
-    let mut cpu = cpu_frame0(&a, &plan, &opts, plan.coord_buffer_len());
-    assert!(adv.read_coords().unwrap() == cpu, "frame 0 differs");
+    let mut frames = FrameLoop::mirrored(&gravel, &params, opts);
+    assert!(frames.matches_mirror(), "frame 0 differs");
     let flows = [
         Flow::Vortex {
             cx: 0.3,
@@ -86,42 +80,36 @@ fn advection_frames_gpu_match_cpu() {
             },
             ..opts
         };
-        adv.set_options(o).unwrap();
+        frames.set_options(o);
         if f == 3 {
-            adv.set_params(&SynthParams {
-                distance: texsyn::DistanceMode::Projected,
-                ..params.clone()
-            })
-            .unwrap();
+            frames
+                .adv
+                .set_params(&SynthParams {
+                    distance: texsyn::DistanceMode::Projected,
+                    ..params.clone()
+                })
+                .unwrap();
         }
-        let plan = adv.plan().clone();
-        let schedule = adv.frame_schedule();
         assert_eq!(
-            schedule.len() > plan.advect_schedule(&a, &o, f as u64).len(),
+            frames.adv.frame_schedule().len()
+                > frames.plan().advect_schedule(&a, &o, f as u64).len(),
             f == 3,
             "the levels above the advected ones are made again after set_params only"
         );
         let v = flow.sample(48, 40, f as f32).unwrap();
-        adv.step(&v, 1.5).unwrap();
-        let q: Vec<[i32; 2]> = v.iter().map(|&v| quantize_velocity(v, 1.5)).collect();
-        let out = run_cpu_frame(&a, &schedule, &mut cpu, &jac, &[], &q).unwrap();
+        let out = frames.step_mirrored(&v, 1.5);
         assert!(
-            adv.read_coords().unwrap() == cpu,
+            frames.matches_mirror(),
             "frame {} ({flow:?}) differs",
             f + 1
         );
-        let rgba: Vec<u8> = out.colors.iter().flatten().copied().collect();
-        assert_eq!(adv.read_rgba8().unwrap(), rgba);
+        assert_eq!(frames.rgba(), rgba8(&out));
     }
     // Frame 0 of `keep_look` makes the levels below the coarsest advected one as its
     // frames do; GPU = CPU on it and on a frame after it.
     let opts = AdvectOptions::keep_look();
-    let mut adv = Advection::new(synth.clone(), &params, opts).unwrap();
-    let mut cpu = cpu_frame0(&a, adv.plan(), &opts, adv.plan().coord_buffer_len());
-    assert!(
-        adv.read_coords().unwrap() == cpu,
-        "keep_look: frame 0 differs"
-    );
+    let mut kept = FrameLoop::mirrored(&gravel, &params, opts);
+    assert!(kept.matches_mirror(), "keep_look: frame 0 differs");
     // The same with anchored renewals (half of them upsampled, then all anchored),
     // alongside: the vortex turns the coarsest advected level past its threshold
     // within these frames. They must match, and change the frames (else the anchored
@@ -131,15 +119,14 @@ fn advection_frames_gpu_match_cpu() {
         anchor_upsample: 0.5,
         ..opts
     };
-    let mut an = Advection::new(synth.clone(), &params, anchored).unwrap();
-    let mut an_cpu = cpu.clone();
+    let mut an = FrameLoop::new(&gravel, &params, anchored).with_mirror(kept.cpu().to_vec());
     let v = flows[0].sample(48, 40, 0.0).unwrap();
     assert!(
-        step_matches_cpu(&mut adv, &a, 0, &mut cpu, &v, 1.0),
+        kept.step_matches_mirror(0, &v, 1.0),
         "keep_look: frame 1 differs"
     );
     assert!(
-        step_matches_cpu(&mut an, &a, 0, &mut an_cpu, &v, 1.0),
+        an.step_matches_mirror(0, &v, 1.0),
         "keep_look, anchored renewals: frame 1 differs"
     );
     for t in 1..6u64 {
@@ -148,16 +135,19 @@ fn advection_frames_gpu_match_cpu() {
                 anchor_upsample: 0.0,
                 ..anchored
             };
-            an.set_options(all).unwrap();
+            an.set_options(all);
         }
         assert!(
-            step_matches_cpu(&mut an, &a, t, &mut an_cpu, &v, 2.0),
+            an.step_matches_mirror(t, &v, 2.0),
             "keep_look, anchored renewals: frame {} differs",
             t + 1
         );
-        assert!(step_matches_cpu(&mut adv, &a, t, &mut cpu, &v, 2.0));
+        assert!(kept.step_matches_mirror(t, &v, 2.0));
     }
-    assert!(an_cpu != cpu, "the anchored renewals changed nothing");
+    assert!(
+        an.cpu() != kept.cpu(),
+        "the anchored renewals changed nothing"
+    );
     let opts = AdvectOptions::default();
     // The caller-owned GPU velocity path gives the same frame as host velocities.
     let v = Flow::Vortex {
@@ -167,8 +157,8 @@ fn advection_frames_gpu_match_cpu() {
     }
     .sample(48, 40, 0.0)
     .unwrap();
-    let mut a1 = Advection::new(synth.clone(), &params, opts).unwrap();
-    let mut a2 = Advection::new(synth, &params, opts).unwrap();
+    let mut a1 = FrameLoop::new(&gravel, &params, opts);
+    let mut a2 = FrameLoop::new(&gravel, &params, opts);
     // A non-finite component counts as 0 on its own, on both paths (the GPU zeroed the
     // whole velocity): the host gets the zeros, the buffer NaN and infinity.
     let (mut host, mut gpu) = (v.clone(), v.clone());
@@ -181,12 +171,9 @@ fn advection_frames_gpu_match_cpu() {
             quantize_velocity(host[i], 2.0)
         );
     }
-    a1.step(&host, 2.0).unwrap();
-    let buffer = velocity_buffer(&gpu);
-    let mut encoder = ctx().device.create_command_encoder(&Default::default());
-    a2.encode_step(&mut encoder, &buffer, 2.0).unwrap();
-    ctx().queue.submit([encoder.finish()]);
-    assert!(a1.read_coords().unwrap() == a2.read_coords().unwrap());
+    a1.step(&host, 2.0);
+    a2.step_through_buffer(&gpu, 2.0);
+    assert!(a1.coords() == a2.coords());
 }
 
 /// The 16-bit float of `x`, which must be 0, NaN or a normal 16-bit value held exactly
@@ -214,13 +201,9 @@ fn f16_bits(x: f32) -> u16 {
 /// format or usage is an error before anything is recorded.
 #[test]
 fn caller_velocity_texture_gives_the_host_paths_frames() {
-    let (_, synth, _) = Synth::gravel(32).parts();
+    let gravel = Synth::gravel(32);
     let (w, h) = (40u32, 36u32);
-    let params = SynthParams {
-        width: w,
-        height: h,
-        ..SynthParams::default()
-    };
+    let params = output(w, h);
     // Velocities that 16-bit floats hold exactly (multiples of 1/64 below 8).
     let v: Vec<[f32; 2]> = Flow::Vortex {
         cx: 0.4,
@@ -275,26 +258,29 @@ fn caller_velocity_texture_gives_the_host_paths_frames() {
     let mut host = v.clone();
     host[5][1] = 0.0;
     let opts = AdvectOptions::default();
-    let mut reference = Advection::new(synth.clone(), &params, opts).unwrap();
+    let mut reference = FrameLoop::new(&gravel, &params, opts);
     for dt in [1.0, 0.75] {
-        reference.step(&host, dt).unwrap();
+        reference.step(&host, dt);
     }
-    let want = reference.read_coords().unwrap();
+    let want = reference.coords();
     let usage = wgpu::TextureUsages::TEXTURE_BINDING;
     use wgpu::TextureFormat as F;
     for format in [F::Rg32Float, F::Rgba32Float, F::Rg16Float, F::Rgba16Float] {
         let t = texture(format, usage, [w, h]);
-        let mut adv = Advection::new(synth.clone(), &params, opts).unwrap();
+        let mut frames = FrameLoop::new(&gravel, &params, opts);
         for dt in [1.0, 0.75] {
             let mut encoder = ctx().device.create_command_encoder(&Default::default());
-            adv.encode_step_texture(&mut encoder, &t, dt).unwrap();
+            frames
+                .adv
+                .encode_step_texture(&mut encoder, &t, dt)
+                .unwrap();
             ctx().queue.submit([encoder.finish()]);
         }
-        assert!(adv.read_coords().unwrap() == want, "{format:?}");
+        assert!(frames.coords() == want, "{format:?}");
     }
     // Refused before anything is recorded: the encoder still submits, the frame count
     // stays.
-    let mut adv = Advection::new(synth, &params, opts).unwrap();
+    let mut adv = FrameLoop::new(&gravel, &params, opts).adv;
     let bad = [
         (texture(F::Rg32Float, usage, [w + 1, h]), "41x36"),
         (texture(F::Rgba8Unorm, usage, [w, h]), "Rgba8Unorm"),
@@ -323,7 +309,8 @@ fn caller_velocity_texture_gives_the_host_paths_frames() {
 /// frames renew it. Setting the same parameters again remakes nothing.
 #[test]
 fn a_new_seed_between_frames_reaches_the_texture() {
-    let (a, synth, _) = Synth::gravel(32).parts();
+    let gravel = Synth::gravel(32);
+    let a = gravel.analysis.clone();
     let (params, v) = centred_vortex(64, 64, 0.05);
     let opts = AdvectOptions::keep_look();
     let reseeded = SynthParams {
@@ -331,31 +318,27 @@ fn a_new_seed_between_frames_reaches_the_texture() {
         randomness: vec![0.8],
         ..params.clone()
     };
-    let mut changed = Advection::new(synth.clone(), &params, opts).unwrap();
-    let mut kept = Advection::new(synth.clone(), &params, opts).unwrap();
-    let fresh = Advection::new(synth.clone(), &reseeded, opts).unwrap();
-    for adv in [&mut changed, &mut kept] {
-        adv.step(&v, 1.0).unwrap();
+    let mut changed = FrameLoop::new(&gravel, &params, opts);
+    let mut kept = FrameLoop::new(&gravel, &params, opts);
+    let fresh = FrameLoop::new(&gravel, &reseeded, opts);
+    for frames in [&mut changed, &mut kept] {
+        frames.step(&v, 1.0);
     }
-    changed.set_params(&reseeded).unwrap();
-    kept.set_params(&params).unwrap();
+    changed.adv.set_params(&reseeded).unwrap();
+    kept.adv.set_params(&params).unwrap();
     let frame = kept.plan().advect_schedule(&a, &opts, 1);
-    assert_eq!(kept.frame_schedule().len(), frame.len());
-    assert!(changed.frame_schedule().len() > frame.len());
-    let mut cpu = changed.read_coords().unwrap();
+    assert_eq!(kept.adv.frame_schedule().len(), frame.len());
+    assert!(changed.adv.frame_schedule().len() > frame.len());
+    let mut changed = changed.mirroring_the_gpu();
     assert!(
-        step_matches_cpu(&mut changed, &a, 1, &mut cpu, &v, 1.0),
+        changed.step_matches_mirror(1, &v, 1.0),
         "the frame after set_params differs from the CPU mirror"
     );
-    kept.step(&v, 1.0).unwrap();
-    let plan = changed.plan().clone();
+    kept.step(&v, 1.0);
+    let plan = changed.plan();
     let coarsest = plan.levels.len() - opts.levels;
     assert!(coarsest > 0, "no level above the advected ones");
-    let (c, f, k) = (
-        changed.read_coords().unwrap(),
-        fresh.read_coords().unwrap(),
-        kept.read_coords().unwrap(),
-    );
+    let (c, f, k) = (changed.coords(), fresh.coords(), kept.coords());
     let mut moved = 0;
     for l in &plan.levels[..coarsest] {
         let r = l.coord_base as usize..(l.coord_base + l.size[0] * l.size[1]) as usize;
@@ -369,14 +352,14 @@ fn a_new_seed_between_frames_reaches_the_texture() {
     assert!(moved > 0, "the new seed changed no coarse coordinate");
     // Then the vortex renews the advected levels from them: the frames part from those
     // of the advection that kept its seed.
-    let differing = |x: &Advection, y: &Advection| {
-        let (p, q) = (x.read_rgba8().unwrap(), y.read_rgba8().unwrap());
+    let differing = |x: &FrameLoop, y: &FrameLoop| {
+        let (p, q) = (x.rgba(), y.rgba());
         p.chunks(4).zip(q.chunks(4)).filter(|(s, t)| s != t).count() as f64 / (64.0 * 64.0)
     };
     let first = differing(&changed, &kept);
     for _ in 0..10 {
-        for adv in [&mut changed, &mut kept] {
-            adv.step(&v, 1.0).unwrap();
+        for frames in [&mut changed, &mut kept] {
+            frames.step(&v, 1.0);
         }
     }
     let later = differing(&changed, &kept);
@@ -407,18 +390,13 @@ fn frames_continue_with_another_feature_weight() {
             feature_weight: Some(w),
             ..AnalysisOptions::default()
         };
-        let a = Arc::new(analyze(&ex, &opts, |_| {}).unwrap());
-        (a.clone(), Arc::new(GpuSynthesizer::new(ctx(), a).unwrap()))
+        Synth::analysed(ex.clone(), &opts)
     };
-    let ((_, strong), (light_a, light)) = (analysed(1.0), analysed(0.25));
-    let params = SynthParams {
-        width: 40,
-        height: 36,
-        ..SynthParams::default()
-    };
+    let (strong, light) = (analysed(1.0), analysed(0.25));
+    let params = output(40, 36);
     let opts = AdvectOptions::default();
-    let mut swapped = Advection::new(strong.clone(), &params, opts).unwrap();
-    let mut kept = Advection::new(strong.clone(), &params, opts).unwrap();
+    let mut swapped = FrameLoop::new(&strong, &params, opts);
+    let mut kept = FrameLoop::new(&strong, &params, opts);
     let v = Flow::Vortex {
         cx: 0.5,
         cy: 0.5,
@@ -426,44 +404,41 @@ fn frames_continue_with_another_feature_weight() {
     }
     .sample(40, 36, 0.0)
     .unwrap();
-    for adv in [&mut swapped, &mut kept] {
+    for frames in [&mut swapped, &mut kept] {
         for _ in 0..2 {
-            adv.step(&v, 1.0).unwrap();
+            frames.step(&v, 1.0);
         }
     }
-    swapped.set_synthesizer(light.clone()).unwrap();
-    assert!(Arc::ptr_eq(swapped.synthesizer(), &light));
-    let mut cpu = swapped.read_coords().unwrap();
+    swapped.set_synthesizer(&light);
+    assert!(Arc::ptr_eq(swapped.adv.synthesizer(), &light.synth));
+    let mut swapped = swapped.mirroring_the_gpu();
     assert!(
-        step_matches_cpu(&mut swapped, &light_a, 2, &mut cpu, &v, 1.0),
+        swapped.step_matches_mirror(2, &v, 1.0),
         "the frame after the swap differs from the CPU mirror"
     );
-    kept.step(&v, 1.0).unwrap();
+    kept.step(&v, 1.0);
     assert_ne!(
-        swapped.read_coords().unwrap(),
-        kept.read_coords().unwrap(),
+        swapped.coords(),
+        kept.coords(),
         "the new feature weight changed nothing"
     );
     // Coordinates are positions in a 32x32 exemplar: a 40x40 one is refused, and so is
     // a synthesizer on another context (the advection's buffers live on its own); a
     // refused swap leaves the advection as it was.
-    let before = swapped.read_coords().unwrap();
-    let (_, other, _) = Synth::gravel(40).parts();
-    let e = swapped.set_synthesizer(other).unwrap_err().to_string();
+    let before = swapped.coords();
+    let other = Synth::gravel(40);
+    let e = swapped
+        .adv
+        .set_synthesizer(other.synth)
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("same size"), "{e}");
     let elsewhere = GpuContext::headless().unwrap();
-    let foreign = Arc::new(GpuSynthesizer::new(&elsewhere, light_a.clone()).unwrap());
-    assert!(swapped.set_synthesizer(foreign.clone()).is_err());
-    assert!(swapped.set_synthesizer(foreign).is_err());
-    assert!(Arc::ptr_eq(swapped.synthesizer(), &light));
-    assert_eq!(swapped.read_coords().unwrap(), before);
-    let mut cpu = before;
-    assert!(step_matches_cpu(
-        &mut swapped,
-        &light_a,
-        3,
-        &mut cpu,
-        &v,
-        1.0
-    ));
+    let foreign = Arc::new(GpuSynthesizer::new(&elsewhere, light.analysis.clone()).unwrap());
+    assert!(swapped.adv.set_synthesizer(foreign.clone()).is_err());
+    assert!(swapped.adv.set_synthesizer(foreign).is_err());
+    assert!(Arc::ptr_eq(swapped.adv.synthesizer(), &light.synth));
+    assert_eq!(swapped.coords(), before);
+    let mut swapped = swapped.with_mirror(before);
+    assert!(swapped.step_matches_mirror(3, &v, 1.0));
 }

@@ -1,8 +1,7 @@
 //! Advection over a surface atlas: velocities from 3D vectors, GPU = CPU.
 
 use texsyn::flow::Flow;
-use texsyn::gpu::advect::{quantize_velocity, AdvectOptions, Advection};
-use texsyn::passes::run_cpu_frame;
+use texsyn::gpu::advect::AdvectOptions;
 use texsyn::SynthParams;
 
 use crate::harness::*;
@@ -12,7 +11,8 @@ use crate::harness::*;
 #[cfg(feature = "xatlas")]
 #[test]
 fn surface_advection_gpu_matches_cpu() {
-    let (a, synth, _) = Synth::gravel(32).parts();
+    let gravel = Synth::gravel(32);
+    let a = gravel.analysis.clone();
     let mut mesh = texsyn::surface::Mesh::cube(1.0, 2);
     mesh.validate_and_repair().unwrap();
     let opts = texsyn::surface::pipeline::SurfaceOptions {
@@ -22,20 +22,9 @@ fn surface_advection_gpu_matches_cpu() {
     let prep = texsyn::surface::pipeline::prepare(&mesh, a.levels.len(), &opts).unwrap();
     let params = texsyn::surface::pipeline::atlas_params(&prep, &SynthParams::default());
     let o = AdvectOptions::default();
-    let mut adv = Advection::new(synth, &params, o).unwrap();
-    let plan = adv.plan().clone();
-    let jac = plan.jacobians();
-    let surface = plan.surface_words().0;
     // Room for the fade state too (frames 5 and 6 fade).
-    let mut cpu = vec![[0i32; 2]; plan.advect_buffer_len(true) as usize];
-    run_cpu_frame(
-        &a,
-        &plan.advect_first_schedule(&a, &o),
-        &mut cpu,
-        &jac,
-        &surface,
-        &[],
-    );
+    let mut frames = FrameLoop::mirrored_with_fade_room(&gravel, &params, o);
+    assert!(!frames.plan().surface_words().0.is_empty());
     let flow = Flow::Vortex {
         cx: 0.5,
         cy: 0.5,
@@ -43,7 +32,6 @@ fn surface_advection_gpu_matches_cpu() {
     };
     let v = texsyn::surface::flow::atlas_velocity(&prep, &flow, 0.0).unwrap();
     assert!(v.iter().any(|p| p[0] != 0.0 || p[1] != 0.0));
-    let q: Vec<[i32; 2]> = v.iter().map(|&p| quantize_velocity(p, 1.0)).collect();
     // Frame 3 re-synthesizes two levels below the finest (their fills included), frame
     // 4 keeps the look (`keep_look`: remade levels on the atlas), frames 5 and 6 fade
     // (the first without fade state, the second reading it).
@@ -58,14 +46,10 @@ fn surface_advection_gpu_matches_cpu() {
             anchor_upsample: if f == 4 { 0.5 } else { 0.0 },
             ..o
         };
-        adv.set_options(o).unwrap();
-        let s = adv.frame_schedule();
-        adv.step(&v, 1.0).unwrap();
-        let out = run_cpu_frame(&a, &s, &mut cpu, &jac, &surface, &q).unwrap();
-        let gpu = adv.read_coords().unwrap();
-        assert!(gpu[..] == cpu[..gpu.len()], "frame {} differs", f + 1);
-        let rgba: Vec<u8> = out.colors.iter().flatten().copied().collect();
-        assert_eq!(adv.read_rgba8().unwrap(), rgba, "frame {}", f + 1);
+        frames.set_options(o);
+        let out = frames.step_mirrored(&v, 1.0);
+        assert!(frames.matches_mirror_start(), "frame {} differs", f + 1);
+        assert_eq!(frames.rgba(), rgba8(&out), "frame {}", f + 1);
     }
     // Per-vertex vectors: the wrong count and NaN are errors.
     let n = prep.atlas.mesh.positions.len();

@@ -1,16 +1,15 @@
 //! What the frames run: the pipelines built up front, the turns of the similarity sets,
 //! the quarter-pixel tables read.
 
-use std::sync::Arc;
-
 use texsyn::analysis::{analyze, AnalysisOptions};
 use texsyn::flow::Flow;
 use texsyn::gpu::advect::{AdvectOptions, Advection};
-use texsyn::gpu::{synth::GpuSynthesizer, GpuContext};
+use texsyn::gpu::GpuContext;
 use texsyn::passes::plan::SynthPlan;
 use texsyn::SynthParams;
 
-use crate::common::{self};
+use crate::common;
+use crate::harness::{output, FrameLoop, Synth};
 
 /// `Advection::new` (and `set_options`) build the pipelines of the frames: a host's frame
 /// loop builds none (they cost 0.2 s of the first frame at 128x128 on lavapipe).
@@ -18,14 +17,8 @@ use crate::common::{self};
 fn frames_build_no_pipelines_after_new() {
     // A context of its own: the other tests build pipelines on the shared one meanwhile.
     let own = GpuContext::headless().unwrap();
-    let ex = common::gravel_crop(48);
-    let a = Arc::new(analyze(&ex, &AnalysisOptions::default(), |_| {}).unwrap());
-    let synth = Arc::new(GpuSynthesizer::new(&own, a).unwrap());
-    let params = SynthParams {
-        width: 40,
-        height: 40,
-        ..SynthParams::default()
-    };
+    let gravel = Synth::gravel_on(&own, 48);
+    let params = output(40, 40);
     let v = Flow::Vortex {
         cx: 0.5,
         cy: 0.5,
@@ -52,7 +45,7 @@ fn frames_build_no_pipelines_after_new() {
             ..AdvectOptions::default()
         },
     ] {
-        let mut adv = Advection::new(synth.clone(), &params, options).unwrap();
+        let mut adv = FrameLoop::on(&own, &gravel, &params, options).adv;
         let built = own.built_pipelines();
         assert!(built > 0);
         for _ in 0..20 {
