@@ -5,11 +5,14 @@ use std::path::{Path, PathBuf};
 
 use super::{fail, CliResult};
 
-/// Checks, before any work, that `path` can be created: its directory exists.
-/// (The file itself is only written, atomically, once the work has succeeded.)
-/// `dir`, where `path` is to be written, must be an existing directory.
+/// Checks, before any work, that `path` can be created: `dir`, where it is to be
+/// written, is an existing directory. (The file itself is only written, atomically, once
+/// the work has succeeded.) Every output goes through here, so `path` is also listed as
+/// an output of this run: an interrupted run removes its unfinished pieces
+/// ([`super::interrupt::register_output`]).
 pub fn check_parent_dir(path: &Path, dir: &Path) -> CliResult<()> {
     if dir.is_dir() {
+        super::interrupt::register_output(path);
         return Ok(());
     }
     Err(fail(if dir.exists() {
@@ -40,6 +43,8 @@ pub fn parse_named_output(s: &str) -> Result<PathBuf, String> {
     Ok(PathBuf::from(s))
 }
 
+/// Checks, before any work, that the file `path` can be written: it names a file, not a
+/// folder or a dangling link, in a directory that takes new files.
 pub fn check_output_dir(path: &Path) -> CliResult<()> {
     if path.file_name().is_none() {
         return Err(fail(format!(
