@@ -19,6 +19,11 @@ use std::sync::Arc;
 
 mod source;
 pub use source::{crop_rows, ExemplarSource, Magnified};
+mod benchmark;
+pub use benchmark::{
+    AnalysisTiming, Benchmark, BenchmarkProgress, BenchmarkTable, PassRow, PassTable, SizeRow,
+    Timing,
+};
 mod evaluation;
 pub use evaluation::{
     EnergyMapImage, Evaluation, EvaluationNote, EvaluationReport, FrameFigures, ImageFigures,
