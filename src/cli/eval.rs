@@ -179,13 +179,14 @@ pub fn run(ui: &Ui, args: EvalArgs) -> CliResult<()> {
         .image_path(&args.image)
         .tileable(args.tile.get())
         .tolerance(args.tolerance)
-        .on_note(|note| match note {
-            EvaluationNote::FractionalCoords => ui.info(
-                "note: the coordinate map is fractional (an anisometric synthesis?): the \
-                 verbatim figures count exact integer copies; give --field SPEC (the field \
-                 it was synthesized along) for the Jacobian figures instead",
-            ),
-            _ => {}
+        .on_note(|note| {
+            if note == EvaluationNote::FractionalCoords {
+                ui.info(
+                    "note: the coordinate map is fractional (an anisometric synthesis?): the \
+                     verbatim figures count exact integer copies; give --field SPEC (the field \
+                     it was synthesized along) for the Jacobian figures instead",
+                )
+            }
         });
     if let Some(path) = &args.coords {
         evaluation = evaluation.coords_path(path);

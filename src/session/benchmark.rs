@@ -20,6 +20,9 @@ const ANALYSIS_RUNS: usize = 3;
 /// What to do about a size the device cannot synthesize in one piece.
 const BENCH_HINT: &str = "benchmark smaller sizes (--sizes)";
 
+/// The field for an output of a width and height.
+type FieldFor<'a> = Box<dyn Fn(u32, u32) -> Result<Field> + 'a>;
+
 /// Where a [`Benchmark`] is, for a progress display.
 #[derive(Clone, Copy, Debug)]
 #[non_exhaustive]
@@ -230,7 +233,7 @@ pub struct Benchmark<'a> {
     runs: u32,
     warmup: u32,
     params: SynthParams,
-    field: Option<Box<dyn Fn(u32, u32) -> Result<Field> + 'a>>,
+    field: Option<FieldFor<'a>>,
     per_pass: bool,
     progress: Box<dyn FnMut(BenchmarkProgress) + 'a>,
 }

@@ -24,6 +24,9 @@ enum Input<T> {
 /// A coordinate map: `width`, `height` and one exemplar position per pixel.
 type Coords = (u32, u32, Vec<[f32; 2]>);
 
+/// The field for a coordinate map of a width and height.
+type FieldFor<'a> = Box<dyn FnOnce(u32, u32) -> Result<Field> + 'a>;
+
 /// Something worth telling the user that is not an error.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[non_exhaustive]
@@ -51,7 +54,7 @@ pub struct Evaluation<'a> {
     image: Option<Input<FloatImage>>,
     coords: Option<Input<Coords>>,
     tileable: Option<bool>,
-    field: Option<Box<dyn FnOnce(u32, u32) -> Result<Field> + 'a>>,
+    field: Option<FieldFor<'a>>,
     tolerance: f64,
     feature_mask: Option<Input<FeatureMask>>,
     energy_scale: Option<f32>,
@@ -64,7 +67,7 @@ pub struct Evaluation<'a> {
 #[derive(Clone, Debug)]
 pub enum EvaluationReport {
     /// The figures of one image.
-    Image(ImageFigures),
+    Image(Box<ImageFigures>),
     /// The temporal figures of a folder of frames.
     Frames(FrameFigures),
 }
@@ -229,7 +232,8 @@ impl<'a> Evaluation<'a> {
             return frames::run(&exemplar, &folder, &flow, dt, self.energy_every)
                 .map(EvaluationReport::Frames);
         }
-        self.run_image().map(EvaluationReport::Image)
+        self.run_image()
+            .map(|f| EvaluationReport::Image(Box::new(f)))
     }
 
     fn run_image(mut self) -> Result<ImageFigures> {
