@@ -4,9 +4,9 @@ use std::path::{Path, PathBuf};
 
 use clap::Args;
 
-use texsyn::quality::{self, CoordMap, FloatImage};
+use texsyn::session::{Evaluation, EvaluationNote};
 
-use super::{fail, CliResult, TileArgs, Ui};
+use super::{CliResult, TileArgs, Ui};
 
 /// Print quality figures of a synthesized image against its exemplar as JSON on stdout
 #[derive(Args, Debug)]
@@ -148,24 +148,24 @@ where
 }
 
 pub fn run(ui: &Ui, args: EvalArgs) -> CliResult<()> {
-    if texsyn::session::is_analysis_file(&args.exemplar)? {
-        return Err(fail(format!(
-            "{} is an analysis file; eval needs the exemplar image itself (the one given to `texsyn analyze`)",
-            args.exemplar.display()
-        )));
-    }
-    let exemplar = ui.load_exemplar(&args.exemplar)?;
+    let mut evaluation = Evaluation::open(&args.exemplar)?;
+    ui.warn_if_animation(&args.exemplar);
     if let Some(flow) = &args.flow {
         // The same checks as `advect` (a centre given in pixels, a core radius of 0).
         let flow = flow.load()?;
         flow.validate()?;
-        return temporal(ui, &args, &exemplar, &flow);
+        let dt = super::time_step(args.dt)?;
+        let report = evaluation
+            .frames(&args.image, flow, dt)
+            .energy_every(args.energy_every)
+            .run()?;
+        return ui.out(report.to_json());
     }
     // The energy map's path is checked before any work.
     if let Some(path) = &args.energy_map {
         super::check_output_dir(path)?;
         super::synth::check_save_extension(path)?;
-        let mut inputs: Vec<(&str, &std::path::Path)> = vec![
+        let mut inputs: Vec<(&str, &Path)> = vec![
             ("exemplar", &args.exemplar),
             ("image evaluated", &args.image),
         ];
@@ -173,282 +173,37 @@ pub fn run(ui: &Ui, args: EvalArgs) -> CliResult<()> {
         inputs.extend(args.feature_mask.as_deref().map(|m| ("feature mask", m)));
         inputs.extend(super::field::FieldSpec::input(&args.field));
         super::check_outputs_not_inputs(&[path], &inputs)?;
+        evaluation = evaluation.energy_map(args.energy_scale);
     }
-    let output = load_image(&args.image)?;
-    let mask = match &args.feature_mask {
-        Some(path) => {
-            let mask = texsyn::analysis::FeatureMask::load(path)?;
-            mask.check_size(exemplar.width, exemplar.height)?;
-            Some(mask)
-        }
-        None => None,
-    };
-
-    let coords = match &args.coords {
-        None => None,
-        Some(path) => {
-            let (w, h, c) = texsyn::image_io::load_coords_exr_f32(path)?;
-            let magnified = (2..=8).find(|f| (w * f, h * f) == (output.width, output.height));
-            if (w, h) != (output.width, output.height) {
-                return Err(fail(format!(
-                    "{} is {w}x{h} but {} is {}x{}: give the coordinate map written together with the image{}",
-                    path.display(),
-                    args.image.display(),
-                    output.width,
-                    output.height,
-                    match magnified {
-                        Some(f) => format!(
-                            " (if the image is a --magnify {f} output, the map has one coordinate \
-                             per synthesized pixel: evaluate the image without --coords)"
-                        ),
-                        None => String::new(),
-                    }
-                )));
-            }
-            // Synthesized coordinates are exemplar positions: anything far outside is not
-            // a coordinate map of this exemplar (another file, another exemplar).
-            let (ew, eh) = (exemplar.width as f32, exemplar.height as f32);
-            if let Some(v) = c
-                .iter()
-                .find(|v| !(v[0] >= -1.0 && v[0] <= ew && v[1] >= -1.0 && v[1] <= eh))
-            {
-                return Err(fail(format!(
-                    "{}: coordinate ({}, {}) lies outside the {}x{} exemplar: give the coordinate \
-                     map written with --coords-out for this exemplar",
-                    path.display(),
-                    v[0],
-                    v[1],
-                    exemplar.width,
-                    exemplar.height
-                )));
-            }
-            if args.field.is_none() && c.iter().any(|v| v[0].fract() != 0.0 || v[1].fract() != 0.0)
-            {
+    evaluation = evaluation
+        .image_path(&args.image)
+        .tileable(args.tile.get())
+        .tolerance(args.tolerance)
+        .on_note(|note| {
+            if note == EvaluationNote::FractionalCoords {
                 ui.info(
                     "note: the coordinate map is fractional (an anisometric synthesis?): the \
                      verbatim figures count exact integer copies; give --field SPEC (the field \
                      it was synthesized along) for the Jacobian figures instead",
-                );
+                )
             }
-            Some((w, h, c))
-        }
-    };
-    let tileable = args
-        .tile
-        .get()
-        .unwrap_or_else(|| texsyn::analysis::detect_tileable(&exemplar));
-    let ex_size = [exemplar.width, exemplar.height];
-    let exemplar = FloatImage::from_exemplar(&exemplar);
-    let jacobian = match (&args.field, &coords) {
-        (Some(spec), Some((w, h, c))) => {
-            if !(args.tolerance > 0.0 && args.tolerance.is_finite()) {
-                return Err(fail("--tolerance must be a positive number"));
-            }
-            let field = spec.resolve([0, 0], *w, *h)?;
-            Some(quality::jacobian_fidelity(
-                c,
-                *w,
-                *h,
-                ex_size,
-                [0, 0],
-                &field,
-                args.tolerance,
-            )?)
-        }
-        _ => None,
-    };
-    // Verbatim figures count exact integer copies: meaningless along a field.
-    let rounded: Option<Vec<[i32; 2]>> = match (&args.field, &coords) {
-        (None, Some((_, _, c))) => Some(
-            c.iter()
-                .map(|v| [v[0].round() as i32, v[1].round() as i32])
-                .collect(),
-        ),
-        _ => None,
-    };
-    let map = match (&rounded, &coords) {
-        (Some(r), Some((w, h, _))) => Some(CoordMap {
-            coords: r,
-            width: *w,
-            height: *h,
-            tileable,
-        }),
-        _ => None,
-    };
-
-    let report = quality::evaluate(&exemplar, &output, quality::DEFAULT_RADIUS, map)?;
-    let wrap_seam = quality::wrap_seam_ratio(&output)?;
-    let mut json = report.to_json();
-    json.pop();
-    json.push_str(&format!(
-        ",\"wrap_seam_ratio\":{}}}",
-        json_number(wrap_seam)
-    ));
-    if let (Some(mask), Some((w, h, c))) = (&mask, &coords) {
-        let b = quality::feature_breakage(mask, c, *w, *h, tileable)?;
-        json.pop();
-        json.push_str(&format!(",\"features\":{}}}", b.to_json()));
+        });
+    if let Some(path) = &args.coords {
+        evaluation = evaluation.coords_path(path);
     }
-    if let Some(j) = jacobian {
-        json.pop();
-        json.push_str(&format!(",\"jacobian\":{}}}", j.to_json()));
+    if let Some(path) = &args.feature_mask {
+        evaluation = evaluation.feature_mask_path(path);
     }
-    // Written last, so a failed evaluation leaves no map behind.
-    if let Some(path) = &args.energy_map {
-        write_energy_map(path, &exemplar, &output, args.energy_scale)?;
+    if let Some(spec) = &args.field {
+        evaluation = evaluation.field(|w, h| {
+            spec.resolve([0, 0], w, h)
+                .map_err(|e| texsyn::Error::InvalidParameter(e.to_string()))
+        });
     }
-    ui.out(json)
-}
-
-/// `eval --flow`: the temporal figures of a folder of frames.
-fn temporal(
-    ui: &Ui,
-    args: &EvalArgs,
-    exemplar: &texsyn::Exemplar,
-    flow: &texsyn::flow::Flow,
-) -> CliResult<()> {
-    let dt = super::time_step(args.dt)?;
-    if !args.image.is_dir() {
-        return Err(fail(format!(
-            "{}: with --flow, give the folder of frames `texsyn advect -o FOLDER` wrote",
-            args.image.display()
-        )));
+    let report = evaluation.run()?;
+    // Written before the figures are printed, so that a failed write prints none.
+    if let (Some(path), Some(map)) = (&args.energy_map, report.energy_map()) {
+        texsyn::image_io::save_image_atomic(path, map.width, map.height, 1, &map.rgba)?;
     }
-    let mut paths: Vec<PathBuf> = std::fs::read_dir(&args.image)
-        .map_err(|e| fail(format!("cannot read {}: {e}", args.image.display())))?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| {
-            p.file_name()
-                .and_then(|n| n.to_str())
-                .is_some_and(|n| n.starts_with("frame_") && n.ends_with(".png"))
-        })
-        .collect();
-    // By frame number: `advect` pads to 5 digits, so frame 100000 sorts before 99999 as
-    // text; names without a number come first and fail the consecutive check below.
-    let index = |p: &PathBuf| -> Option<u64> {
-        let n = p.file_name()?.to_str()?;
-        n.strip_prefix("frame_")?.strip_suffix(".png")?.parse().ok()
-    };
-    paths.sort_by_key(|p| (index(p), p.clone()));
-    if paths.len() < 2 {
-        return Err(fail(format!(
-            "{}: needs at least two frame_*.png files",
-            args.image.display()
-        )));
-    }
-    // The flow is applied frame by frame: a gap (advect --every K) would compare frames
-    // K steps apart as if they were 1.
-    for pair in paths.windows(2) {
-        match (index(&pair[0]), index(&pair[1])) {
-            (Some(a), Some(b)) if b == a + 1 => {}
-            _ => {
-                return Err(fail(format!(
-                    "{}: the frames are not consecutive ({} then {}); eval --flow needs every frame (advect --every 1)",
-                    args.image.display(),
-                    pair[0].file_name().unwrap_or_default().to_string_lossy(),
-                    pair[1].file_name().unwrap_or_default().to_string_lossy()
-                )))
-            }
-        }
-    }
-    // One frame at a time: memory stays flat for long sequences.
-    let first = load_image(&paths[0])?;
-    let (w, h) = (first.width, first.height);
-    // A field of another size than the frames is an error, not a silently ignored flow.
-    flow.sample(w, h, 0.0)?;
-    let mut figures = quality::TemporalFigures::new(
-        &FloatImage::from_exemplar(exemplar),
-        match args.energy_every {
-            0 => usize::MAX,
-            k => k,
-        },
-    )
-    .starting_at(index(&paths[0]).unwrap_or(0) as usize);
-    figures.push(first, &[])?;
-    for path in paths.iter().skip(1) {
-        // The frame's own number is its time (a folder may start after frame 0).
-        let t = index(path).unwrap_or(0);
-        let frame = load_image(path)?;
-        if (frame.width, frame.height) != (w, h) {
-            return Err(fail(format!(
-                "{} is {}x{}, the first frame {w}x{h}: the frames must all have one size",
-                path.display(),
-                frame.width,
-                frame.height
-            )));
-        }
-        let v = flow.sample(w, h, t as f32)?;
-        figures.push(frame, &super::advect::displacement(&v, dt))?;
-    }
-    let frames = paths.len();
-    let report = figures.finish()?;
-    let list = |v: &[f64]| {
-        v.iter()
-            .map(|x| json_number(*x))
-            .collect::<Vec<_>>()
-            .join(",")
-    };
-    let energy = report
-        .energy
-        .iter()
-        .map(|(t, e)| format!("[{t},{}]", json_number(*e)))
-        .collect::<Vec<_>>()
-        .join(",");
-    ui.out(format!(
-        "{{\"frames\":{},\"mean_warped_diff\":{},\"mean_unwarped_diff\":{},\"mean_pops\":{},\"warped_diff\":[{}],\"pops\":[{}],\"energy\":[{}],\"sharpness\":[{}]}}",
-        frames,
-        json_number(report.mean_warped_diff()),
-        json_number(report.mean_unwarped_diff()),
-        json_number(report.mean_pops()),
-        list(&report.warped_diff),
-        list(&report.pops),
-        energy,
-        list(&report.sharpness)
-    ))
-}
-
-fn json_number(v: f64) -> String {
-    if v.is_finite() {
-        format!("{v}")
-    } else {
-        "null".into()
-    }
-}
-
-/// Any image texsyn reads (the library's hardened decoding: decoder panics, truncated
-/// JPEGs, devices refused), as floats; non-finite samples (a float EXR) are refused, since
-/// every figure would silently skip or absorb them.
-fn load_image(path: &Path) -> CliResult<FloatImage> {
-    let img = texsyn::image_io::open_image(path)?;
-    texsyn::image_io::check_finite(&img, path, "image evaluated")?;
-    Ok(FloatImage::from_dynamic(&img))
-}
-
-/// `--energy-map`: the per-window texture energy, centred on the output's pixels.
-fn write_energy_map(
-    path: &Path,
-    exemplar: &FloatImage,
-    output: &FloatImage,
-    scale: f32,
-) -> CliResult<()> {
-    if !(scale > 0.0 && scale.is_finite()) {
-        return Err(fail(format!(
-            "--energy-scale {scale}: give a positive number"
-        )));
-    }
-    let r = quality::DEFAULT_RADIUS;
-    let map = quality::texture_energy_map(exemplar, output, r)?;
-    let grey = map.to_grey8(scale);
-    let (w, h) = (output.width, output.height);
-    let mut rgba = vec![0u8; w as usize * h as usize * 4];
-    for y in 0..map.height {
-        for x in 0..map.width {
-            let v = grey[(y * map.width + x) as usize];
-            let i = (((y + r) * w + x + r) * 4) as usize;
-            rgba[i..i + 3].fill(v);
-            rgba[i + 3] = 255;
-        }
-    }
-    texsyn::image_io::save_image_atomic(path, w, h, 1, &rgba)?;
-    Ok(())
+    ui.out(report.to_json())
 }

@@ -1,6 +1,7 @@
 //! Atomic writes: every output goes to a temporary file next to its target, is fsynced,
 //! then renamed over the target, so that a failed or interrupted write never leaves a
-//! partial file. Outputs in progress are tracked so that a signal handler can remove them.
+//! partial file. [`remove_temporaries`] lets a signal handler remove the temporary files
+//! of an interrupted run.
 
 use std::ffi::OsString;
 use std::fs::{self, File, OpenOptions};
@@ -13,8 +14,7 @@ use crate::error::{Error, Result};
 static TEMP_COUNTER: AtomicU64 = AtomicU64::new(0);
 
 /// Removes the temporary file on drop unless disarmed (covers errors and panics in the
-/// caller's closure). While armed, the file is listed in [`PENDING_OUTPUTS`], so that an
-/// interrupted run can remove it too ([`remove_pending_outputs`]).
+/// caller's closure).
 struct TempGuard {
     path: PathBuf,
     armed: bool,
@@ -23,7 +23,6 @@ struct TempGuard {
 impl TempGuard {
     fn disarm(&mut self) {
         self.armed = false;
-        forget_pending_output(&self.path);
     }
 }
 
@@ -31,44 +30,45 @@ impl Drop for TempGuard {
     fn drop(&mut self) {
         if self.armed {
             let _ = fs::remove_file(&self.path);
-            forget_pending_output(&self.path);
         }
     }
 }
 
-/// Temporary files and staging folders of outputs not yet committed (`true`: a folder).
-static PENDING_OUTPUTS: std::sync::Mutex<Vec<(PathBuf, bool)>> = std::sync::Mutex::new(Vec::new());
-
-/// Lists `path` (a temporary file, or a staging folder when `dir`) as an output in
-/// progress: [`remove_pending_outputs`] removes it unless [`forget_pending_output`] was
-/// called first. Destructors clean up after errors and panics; this is for a process
-/// that is interrupted (Ctrl-C, `kill`), where no destructor runs.
-pub fn register_pending_output(path: &Path, dir: bool) {
-    let mut p = PENDING_OUTPUTS.lock().unwrap_or_else(|e| e.into_inner());
-    p.push((path.to_path_buf(), dir));
-}
-
-/// The output at `path` was committed or removed: no longer listed.
-pub fn forget_pending_output(path: &Path) {
-    let mut p = PENDING_OUTPUTS.lock().unwrap_or_else(|e| e.into_inner());
-    p.retain(|(q, _)| q != path);
-}
-
-/// Removes every output in progress (temporary files, staging folders), for a process
-/// about to exit on a signal. Targets are never touched: they hold either the previous
-/// file or a complete new one. Returns how many were removed.
-pub fn remove_pending_outputs() -> usize {
-    let p = PENDING_OUTPUTS.lock().unwrap_or_else(|e| e.into_inner());
-    p.iter()
-        .filter(|(path, dir)| {
-            if *dir {
-                fs::remove_dir_all(path).is_ok()
-            } else {
-                fs::remove_file(path).is_ok()
-            }
-        })
+/// Removes the temporary files that this process is writing for the output `path` (the
+/// `.{name}.{pid}.{n}.tmp` files of [`write_atomic`] and [`stage_file`]), for a process
+/// about to exit on a signal (Ctrl-C, `kill`), where no destructor runs. The output
+/// itself is never touched: it holds either the previous file or a complete new one.
+/// Returns how many were removed.
+///
+/// ```no_run
+/// // In a signal handler's thread, for each output the program was writing:
+/// let removed = texsyn::image_io::remove_temporaries("out.png".as_ref());
+/// # let _ = removed;
+/// ```
+pub fn remove_temporaries(path: &Path) -> usize {
+    if fs::metadata(path).is_ok_and(|m| !m.is_file()) {
+        // A stream (written through) or a folder: no temporary file.
+        return 0;
+    }
+    let Ok(path) = follow_symlinks(path) else {
+        return 0;
+    };
+    let (Some(dir), Some(name)) = (parent_dir(&path), path.file_name()) else {
+        return 0;
+    };
+    let own = std::process::id();
+    temporaries(&dir, name)
+        .filter(|(_, pid)| *pid == own)
+        .filter(|(p, _)| fs::remove_file(p).is_ok())
         .count()
 }
+
+/// No-op, kept so that callers that listed outputs here still build: the command line
+/// keeps its own list of outputs in progress; the library holds no global state.
+pub fn register_pending_output(_path: &Path, _dir: bool) {}
+
+/// No-op counterpart of [`register_pending_output`].
+pub fn forget_pending_output(_path: &Path) {}
 
 /// Writes a file atomically: `write` fills a temporary file `.{filename}.{pid}.{n}.tmp` in
 /// the target's directory, which is then flushed, fsynced and renamed over `path` (and
@@ -184,10 +184,7 @@ pub fn stage_file(
             });
         }
     }
-    let dir = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
+    let dir = parent_dir(path).expect("a path that names a file has a parent");
     if !dir.is_dir() {
         return Err(werr(if dir.exists() {
             format!("{} is not a directory", dir.display())
@@ -209,14 +206,11 @@ pub fn stage_file(
     ));
     let tmp_path = dir.join(tmp_name);
 
-    // Listed before it exists, so that no interruption falls between the two.
-    register_pending_output(&tmp_path, false);
     let file = OpenOptions::new()
         .write(true)
         .create_new(true)
         .open(&tmp_path)
         .map_err(|e| {
-            forget_pending_output(&tmp_path);
             werr(format!(
                 "cannot create a temporary file in {}: {e}",
                 dir.display()
@@ -261,6 +255,35 @@ fn follow_symlinks(path: &Path) -> std::result::Result<PathBuf, String> {
     Err("too many levels of symbolic links".into())
 }
 
+/// The directory `path` lies in (`.` for a bare file name).
+fn parent_dir(path: &Path) -> Option<PathBuf> {
+    path.file_name()?;
+    Some(match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    })
+}
+
+/// The temporary files `.{file_name}.{pid}.{n}.tmp` in `dir`, with their process ids.
+fn temporaries(dir: &Path, file_name: &std::ffi::OsStr) -> impl Iterator<Item = (PathBuf, u32)> {
+    let prefix = file_name.to_str().map(|name| format!(".{name}."));
+    let entries = prefix.as_ref().and_then(|_| fs::read_dir(dir).ok());
+    entries
+        .into_iter()
+        .flatten()
+        .flatten()
+        .filter_map(move |entry| {
+            let entry_name = entry.file_name();
+            let rest = entry_name
+                .to_str()?
+                .strip_prefix(prefix.as_deref()?)?
+                .strip_suffix(".tmp")?;
+            let (pid, n) = rest.split_once('.')?;
+            n.parse::<u64>().ok()?;
+            Some((entry.path(), pid.parse::<u32>().ok()?))
+        })
+}
+
 /// Removes `.{file_name}.{pid}.{n}.tmp` files in `dir` whose process no longer runs
 /// (left by a run that was killed while writing). Only where `/proc` tells which
 /// processes run; best effort.
@@ -268,30 +291,29 @@ fn remove_stale_temporaries(dir: &Path, file_name: &std::ffi::OsStr) {
     if !Path::new("/proc/self").exists() {
         return;
     }
-    let Some(name) = file_name.to_str() else {
-        return;
-    };
-    let prefix = format!(".{name}.");
-    let Ok(entries) = fs::read_dir(dir) else {
-        return;
-    };
-    for entry in entries.flatten() {
-        let entry_name = entry.file_name();
-        let Some(rest) = entry_name
-            .to_str()
-            .and_then(|n| n.strip_prefix(&prefix))
-            .and_then(|n| n.strip_suffix(".tmp"))
-        else {
-            continue;
-        };
-        let Some((pid, n)) = rest.split_once('.') else {
-            continue;
-        };
-        let (Ok(pid), Ok(_)) = (pid.parse::<u32>(), n.parse::<u64>()) else {
-            continue;
-        };
+    for (path, pid) in temporaries(dir, file_name) {
         if pid != std::process::id() && !Path::new(&format!("/proc/{pid}")).exists() {
-            let _ = fs::remove_file(entry.path());
+            let _ = fs::remove_file(path);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn remove_temporaries_takes_only_this_process_s() {
+        let dir = std::env::temp_dir().join(format!("texsyn-atomic-{}", std::process::id()));
+        fs::create_dir_all(&dir).unwrap();
+        let own = dir.join(format!(".out.png.{}.3.tmp", std::process::id()));
+        let other = dir.join(".out.png.1.3.tmp");
+        let unrelated = dir.join(format!(".other.png.{}.0.tmp", std::process::id()));
+        for p in [&own, &other, &unrelated] {
+            fs::write(p, b"x").unwrap();
+        }
+        assert_eq!(remove_temporaries(&dir.join("out.png")), 1);
+        assert!(!own.exists() && other.exists() && unrelated.exists());
+        fs::remove_dir_all(&dir).unwrap();
     }
 }

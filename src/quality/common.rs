@@ -63,7 +63,7 @@ pub(super) fn splitmix(state: &mut u64) -> u64 {
 }
 
 /// JSON number (`null` for NaN and infinities, which JSON cannot represent).
-pub(super) fn json_num(v: f64) -> String {
+pub(crate) fn json_num(v: f64) -> String {
     if v.is_finite() {
         format!("{v}")
     } else {

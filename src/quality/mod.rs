@@ -47,6 +47,7 @@ mod tiling;
 mod verbatim;
 mod windows;
 
+pub(crate) use common::json_num;
 pub use energy::{
     coarse_energy_any_phase, multiscale_energy, texture_energy, texture_energy_any,
     texture_energy_exact, texture_energy_map, EnergyMap, DEFAULT_RADIUS,

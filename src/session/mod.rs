@@ -19,6 +19,15 @@ use std::sync::Arc;
 
 mod source;
 pub use source::{crop_rows, ExemplarSource, Magnified};
+mod benchmark;
+pub use benchmark::{
+    AnalysisTiming, Benchmark, BenchmarkProgress, BenchmarkTable, PassRow, PassTable, SizeRow,
+    Timing,
+};
+mod evaluation;
+pub use evaluation::{
+    EnergyMapImage, Evaluation, EvaluationNote, EvaluationReport, FrameFigures, ImageFigures,
+};
 
 use crate::analysis::{self, Analysis, AnalysisOptions, Exemplar, Progress};
 use crate::error::{Error, Result};
