@@ -19,6 +19,11 @@ use std::sync::Arc;
 
 mod source;
 pub use source::{crop_rows, ExemplarSource, Magnified};
+mod advect;
+pub use advect::{
+    AdvectCosts, AdvectFrame, AdvectNote, AdvectScheme, AdvectSession, AdvectSessionBuilder,
+    AdvectSummary, SchemeReason, DEFAULT_ATLAS_SIZE,
+};
 
 use crate::analysis::{self, Analysis, AnalysisOptions, Exemplar, Progress};
 use crate::error::{Error, Result};
