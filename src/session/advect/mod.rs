@@ -166,8 +166,11 @@ enum SchemeRequest {
     Options(AdvectOptions),
 }
 
+/// What [`AdvectSessionBuilder::on_note`] takes.
+type NoteCallback<'a> = Box<dyn FnMut(&AdvectNote) + 'a>;
+
 /// Builds an [`AdvectSession`]: an exemplar, a 2D size or a mesh, a flow; the rest has
-/// defaults.
+/// defaults. The callbacks (`'a`) are called only while [`Self::build`] runs.
 pub struct AdvectSessionBuilder<'a> {
     source: SourceRequest,
     tileable: Option<bool>,
@@ -185,7 +188,7 @@ pub struct AdvectSessionBuilder<'a> {
     profile_passes: bool,
     context: Option<GpuContext>,
     progress: Option<Box<dyn FnMut(Progress) + 'a>>,
-    notes: Option<Box<dyn FnMut(&AdvectNote) + 'a>>,
+    notes: Option<NoteCallback<'a>>,
 }
 
 /// The atlas side of a mesh advection unless [`AdvectSessionBuilder::atlas_size`] says.
@@ -607,7 +610,9 @@ fn check_output_size(ctx: &GpuContext, width: u32, height: u32, hint: &'static s
         return Err(too_large(format!("at most {max_dim} pixels a side")));
     }
     let bytes = width as u64 * height as u64 * 8;
-    let max = (limits.max_storage_buffer_binding_size as u64).min(limits.max_buffer_size);
+    let max = limits
+        .max_storage_buffer_binding_size
+        .min(limits.max_buffer_size);
     if bytes > max {
         return Err(too_large(format!(
             "its coordinate pyramid needs more than {} MiB in one buffer, the device allows {} MiB",
@@ -616,4 +621,43 @@ fn check_output_size(ctx: &GpuContext, width: u32, height: u32, hint: &'static s
         )));
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_scheme_keeps_the_look_only_where_the_jacobian_is_constant() {
+        let auto = AdvectScheme::default();
+        let (o, why) = auto.resolve(true);
+        assert!(o.keep_look && o.fade == KEEP_LOOK_FADE);
+        assert_eq!(why, SchemeReason::KeepLookDefault);
+        assert_eq!(o.levels, AdvectOptions::keep_look().levels);
+        let (o, why) = auto.resolve(false);
+        assert!(!o.keep_look && o.fade == 0);
+        assert_eq!(why, SchemeReason::CarryDefault);
+        let two = AdvectScheme {
+            levels: Some(2),
+            ..Default::default()
+        };
+        assert_eq!(two.resolve(true).1, SchemeReason::FewLevels);
+        let asked = AdvectScheme {
+            keep_look: true,
+            fade: Some(0),
+            ..Default::default()
+        };
+        let (o, why) = asked.resolve(false);
+        assert!(o.keep_look && o.fade == 0);
+        assert_eq!(why, SchemeReason::KeepLookAsked);
+        assert_eq!(
+            AdvectNote::Scheme {
+                keep_look: o.keep_look,
+                fade: o.fade,
+                reason: why
+            }
+            .to_string(),
+            "advection: keeping the look, renewals not faded (--keep-look)"
+        );
+    }
 }

@@ -112,12 +112,11 @@ impl AdvectSession {
                 None => self.flow.sample(w, h, t as f32)?,
             };
             let start = Instant::now();
-            let profile = match self.passes.is_some() {
-                true => Some(self.advection.profile_step(&v, self.dt)?),
-                false => {
-                    self.advection.step(&v, self.dt)?;
-                    None
-                }
+            let profile = if self.passes.is_some() {
+                Some(self.advection.profile_step(&v, self.dt)?)
+            } else {
+                self.advection.step(&v, self.dt)?;
+                None
             };
             self.ctx.wait_idle()?;
             let elapsed = start.elapsed();
@@ -135,7 +134,7 @@ impl AdvectSession {
                 &moved,
             )?;
         }
-        if t > 0 && t % FULL_EVERY == 0 {
+        if t > 0 && t.is_multiple_of(FULL_EVERY) {
             if let Some(timer) = &mut self.timer {
                 timer.time(&self.synthesizer)?;
             }
@@ -202,6 +201,12 @@ impl AdvectSession {
     /// The advection itself (e.g. for its GPU texture), from frame 0 on.
     pub fn advection(&self) -> &Advection {
         &self.advection
+    }
+
+    /// The advection, to drive on from here (e.g. with velocities of the caller's own,
+    /// [`Advection::encode_step`]); the figures and costs end here.
+    pub fn into_advection(self) -> Advection {
+        self.advection
     }
 
     /// The device the session runs on.
