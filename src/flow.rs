@@ -437,6 +437,17 @@ impl std::str::FromStr for Flow {
     }
 }
 
+/// What a frame moves each pixel by: velocity x dt, clamped per component as the
+/// advection clamps it ([`crate::passes::advect::MAX_SPEED`] pixels a frame); the
+/// displacement the temporal figures warp the previous frame by.
+pub fn displacement(velocity: &[[f32; 2]], dt: f32) -> Vec<[f32; 2]> {
+    let m = crate::passes::advect::MAX_SPEED;
+    velocity
+        .iter()
+        .map(|p| p.map(|c| (c * dt).clamp(-m, m)))
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

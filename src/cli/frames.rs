@@ -10,8 +10,8 @@ use super::{fail, CliResult};
 /// replace the folder's frames only once every frame was written. A failed run leaves
 /// nothing behind (the staging folder is removed when dropped uncommitted), and a
 /// shorter re-run leaves no stale frames of an earlier one.
-pub struct Staging {
-    pub dir: PathBuf,
+struct Staging {
+    dir: PathBuf,
     target: PathBuf,
     committed: bool,
 }
@@ -24,7 +24,7 @@ fn is_frame_file(name: &str) -> bool {
 }
 
 impl Staging {
-    pub fn new(target: &Path, inputs: &[(&str, &Path)]) -> CliResult<Self> {
+    fn new(target: &Path, inputs: &[(&str, &Path)]) -> CliResult<Self> {
         if target.exists() && !target.is_dir() {
             return Err(fail(format!(
                 "{} exists and is not a folder: give a folder for the frames, a .png or a .gif",
@@ -55,11 +55,10 @@ impl Staging {
         super::check_parent_dir(target, &parent)?;
         let prefix = format!(".{}.partial-", name.to_string_lossy());
         remove_stale_staging(&parent, &prefix);
+        // check_parent_dir listed `target`: an interrupted run removes this folder too
+        // (`cli::interrupt::staging_dir` names it the same way).
         let dir = parent.join(format!("{prefix}{}", std::process::id()));
-        // Listed before it exists: an interrupted run removes it (see cli::interrupt).
-        texsyn::image_io::register_pending_output(&dir, true);
         std::fs::create_dir(&dir).map_err(|e| {
-            texsyn::image_io::forget_pending_output(&dir);
             fail(format!(
                 "cannot create the folder {}: {e}",
                 target.display()
@@ -119,7 +118,7 @@ impl Staging {
         Ok(())
     }
 
-    pub fn commit(mut self) -> CliResult<()> {
+    fn commit(mut self) -> CliResult<()> {
         let err = |e: std::io::Error| fail(format!("cannot write {}: {e}", self.target.display()));
         if self.target.is_dir() {
             // All or nothing: a name the new frames cannot take (a folder put there
@@ -155,7 +154,6 @@ impl Staging {
             std::fs::rename(&self.dir, &self.target).map_err(err)?;
         }
         self.committed = true;
-        texsyn::image_io::forget_pending_output(&self.dir);
         Ok(())
     }
 }
@@ -189,13 +187,12 @@ impl Drop for Staging {
     fn drop(&mut self) {
         if !self.committed {
             let _ = std::fs::remove_dir_all(&self.dir);
-            texsyn::image_io::forget_pending_output(&self.dir);
         }
     }
 }
 
 /// The frames' destination.
-pub enum Sink {
+enum Sink {
     /// PNG frames into this (staging) folder.
     Folder(PathBuf),
     /// A GIF at this path, frames kept until the end.
@@ -204,8 +201,92 @@ pub enum Sink {
     Apng(PathBuf, Vec<image::RgbaImage>),
 }
 
+/// `-o`: a folder of PNG frames (staged, swapped in when complete) or an animation
+/// (`.png`: animated PNG, `.gif`), checked before any work.
+pub struct FrameOutput {
+    sink: Sink,
+    staging: Option<Staging>,
+    /// Frames an animation keeps until it is encoded.
+    kept_frames: u64,
+    /// Frames written so far, and their size.
+    written: (u32, [u32; 2]),
+}
+
+impl FrameOutput {
+    /// Checks `output` (and that no input is one of its frames) and prepares it for
+    /// `kept_frames` frames.
+    pub fn open(output: &Path, inputs: &[(&str, &Path)], kept_frames: u64) -> CliResult<Self> {
+        let ext = output
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(|e| e.to_ascii_lowercase());
+        let mut staging = None;
+        let sink = if ext.as_deref() == Some("gif") {
+            super::check_output_dir(output)?;
+            Sink::Gif(output.to_path_buf(), Vec::new())
+        } else if ext.as_deref() == Some("png") {
+            super::check_output_dir(output)?;
+            Sink::Apng(output.to_path_buf(), Vec::new())
+        } else if ext.is_some() && !output.is_dir() {
+            return Err(fail(format!(
+                "-o {}: an animation is OUT.png (animated PNG) or OUT.gif; for a folder of frames give a name without an extension (or an existing folder)",
+                output.display()
+            )));
+        } else {
+            let s = Staging::new(output, inputs)?;
+            let dir = s.dir.clone();
+            staging = Some(s);
+            Sink::Folder(dir)
+        };
+        Ok(Self {
+            sink,
+            staging,
+            kept_frames,
+            written: (0, [0, 0]),
+        })
+    }
+
+    /// Writes frame `index` (into the staging folder) or keeps it for the animation.
+    pub fn push(&mut self, index: u32, image: image::RgbaImage) -> CliResult<()> {
+        self.written = (self.written.0 + 1, [image.width(), image.height()]);
+        match &mut self.sink {
+            Sink::Folder(dir) => {
+                let path = dir.join(format!("frame_{index:05}.png"));
+                texsyn::image_io::save_image_atomic(
+                    &path,
+                    image.width(),
+                    image.height(),
+                    4,
+                    image.as_raw(),
+                )?;
+            }
+            Sink::Gif(path, list) | Sink::Apng(path, list) => {
+                if list.is_empty() {
+                    check_animation_fits(path, image.width(), image.height(), self.kept_frames)?;
+                }
+                list.push(image)
+            }
+        }
+        Ok(())
+    }
+
+    /// Encodes the animation, or swaps the frames' folder in; the frames written and
+    /// their size.
+    pub fn finish(mut self) -> CliResult<(u32, [u32; 2])> {
+        match &self.sink {
+            Sink::Gif(path, list) => write_gif(path, list)?,
+            Sink::Apng(path, list) => write_apng(path, list)?,
+            Sink::Folder(_) => {}
+        }
+        if let Some(s) = self.staging.take() {
+            s.commit()?;
+        }
+        Ok(self.written)
+    }
+}
+
 /// An animated PNG (25 frames per second, looping), written atomically.
-pub fn write_apng(path: &Path, frames: &[image::RgbaImage]) -> CliResult<()> {
+fn write_apng(path: &Path, frames: &[image::RgbaImage]) -> CliResult<()> {
     let Some(first) = frames.first() else {
         return Err(fail("no frames to write"));
     };
@@ -231,7 +312,7 @@ pub fn write_apng(path: &Path, frames: &[image::RgbaImage]) -> CliResult<()> {
 /// An animation is kept in memory until it is encoded: refuse one that cannot be (GIF
 /// sides over 65535 pixels) or that would not fit in the memory available, at its first
 /// frame rather than with an allocation failure hundreds of frames later.
-pub fn check_animation_fits(path: &Path, width: u32, height: u32, frames: u64) -> CliResult<()> {
+fn check_animation_fits(path: &Path, width: u32, height: u32, frames: u64) -> CliResult<()> {
     let gif = path
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("gif"));
@@ -258,7 +339,7 @@ pub fn check_animation_fits(path: &Path, width: u32, height: u32, frames: u64) -
 }
 
 /// An animated GIF (25 frames per second, looping), written atomically.
-pub fn write_gif(path: &Path, frames: &[image::RgbaImage]) -> CliResult<()> {
+fn write_gif(path: &Path, frames: &[image::RgbaImage]) -> CliResult<()> {
     texsyn::image_io::write_atomic(path, |w| {
         let mut enc = image::codecs::gif::GifEncoder::new_with_speed(w, 10);
         enc.set_repeat(image::codecs::gif::Repeat::Infinite)

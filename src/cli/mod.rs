@@ -21,7 +21,7 @@ use clap::{Parser, Subcommand};
 
 // The shared pieces, at the paths the subcommands name them by (`super::X`).
 pub use args::{check_feature_mask, AppearanceArgs, FieldArg, ScheduleArgs, SeedArg, TileArgs};
-pub use device::{check_output_size, check_output_size_hint, max_buffer_binding, WINDOW_HINT};
+pub use device::{check_output_size, max_buffer_binding, WINDOW_HINT};
 pub use output::{
     check_distinct_outputs, check_output_dir, check_outputs_not_inputs, check_parent_dir,
     parse_named_output, takes_new_files,

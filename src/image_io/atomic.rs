@@ -63,13 +63,6 @@ pub fn remove_temporaries(path: &Path) -> usize {
         .count()
 }
 
-/// No-op, kept so that callers that listed outputs here still build: the command line
-/// keeps its own list of outputs in progress; the library holds no global state.
-pub fn register_pending_output(_path: &Path, _dir: bool) {}
-
-/// No-op counterpart of [`register_pending_output`].
-pub fn forget_pending_output(_path: &Path) {}
-
 /// Writes a file atomically: `write` fills a temporary file `.{filename}.{pid}.{n}.tmp` in
 /// the target's directory, which is then flushed, fsynced and renamed over `path` (and
 /// the directory is fsynced, best effort). On any error, or if `write` panics, the

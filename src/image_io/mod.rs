@@ -27,10 +27,7 @@ mod material;
 mod read;
 mod write;
 
-pub use atomic::{
-    forget_pending_output, register_pending_output, remove_temporaries, stage_file, write_atomic,
-    write_files_atomic, StagedFile,
-};
+pub use atomic::{remove_temporaries, stage_file, write_atomic, write_files_atomic, StagedFile};
 pub use coords::{
     encode_coords_exr_f32, load_coords_exr, load_coords_exr_f32, save_coords_exr_atomic,
     save_coords_exr_f32_atomic,

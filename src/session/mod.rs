@@ -28,6 +28,11 @@ mod evaluation;
 pub use evaluation::{
     EnergyMapImage, Evaluation, EvaluationNote, EvaluationReport, FrameFigures, ImageFigures,
 };
+mod advect;
+pub use advect::{
+    AdvectCosts, AdvectFrame, AdvectNote, AdvectScheme, AdvectSession, AdvectSessionBuilder,
+    AdvectSummary, SchemeReason, DEFAULT_ATLAS_SIZE,
+};
 
 use crate::analysis::{self, Analysis, AnalysisOptions, Exemplar, Progress};
 use crate::error::{Error, Result};
