@@ -9,7 +9,7 @@ use crate::error::{Error, Result};
 use crate::gpu::synth::{GpuSynthesizer, MAX_WINDOWED_PIXELS};
 use crate::gpu::GpuContext;
 
-use super::builder::{Source, SessionBuilder};
+use super::builder::{SessionBuilder, Source};
 use super::{BuildTimings, Event, ExemplarSource, Magnified, Session};
 
 /// What reading the source gives: the (possibly downsampled) exemplar or analysis, the
@@ -63,9 +63,9 @@ impl SessionBuilder {
         let input = self.read_input(report);
         let (context, device_time) = match (given, device) {
             (Some(c), _) => (Ok(c), Duration::ZERO),
-            (None, Some(thread)) => thread
-                .join()
-                .map_err(|_| Error::Gpu("creating the device failed (its thread panicked)".into()))?,
+            (None, Some(thread)) => thread.join().map_err(|_| {
+                Error::Gpu("creating the device failed (its thread panicked)".into())
+            })?,
             (None, None) => unreachable!("a device thread runs when no context is given"),
         };
         let input = input?;
@@ -204,8 +204,9 @@ impl SessionBuilder {
         });
         let upload = t.elapsed();
         let synthesizer = synthesizer?;
-        let (built, pipelines) = pipelines
-            .map_err(|_| Error::Gpu("building the pipelines failed (their thread panicked)".into()))?;
+        let (built, pipelines) = pipelines.map_err(|_| {
+            Error::Gpu("building the pipelines failed (their thread panicked)".into())
+        })?;
         built?;
         if let Some(note) = super::tileable_note(&synthesizer, &params)? {
             report(Event::Note(note));

@@ -14,7 +14,10 @@ use super::MaterialMap;
 pub(super) enum Source {
     None,
     /// A file: an image or an analysis file (memory-mapped with `mapped`).
-    Path { path: PathBuf, mapped: bool },
+    Path {
+        path: PathBuf,
+        mapped: bool,
+    },
     Exemplar(Exemplar),
     Analysis(Analysis),
 }

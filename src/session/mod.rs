@@ -27,8 +27,8 @@ mod texture;
 pub use builder::{LevelCallback, SessionBuilder};
 pub use run::{CopyGuardReport, RunTimings, SynthesisTiming, LONG_SYNTHESIS_PIXELS};
 pub use source::{crop_rows, ExemplarSource, Magnified};
-pub use texture::{check_image_path, check_image_size, MaterialMap, SynthesizedMap, Texture};
 use texture::MagnifiedImage;
+pub use texture::{check_image_path, check_image_size, MaterialMap, SynthesizedMap, Texture};
 
 use crate::analysis::{self, Analysis, AnalysisOptions, Progress};
 use crate::error::{Error, Result};

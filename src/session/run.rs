@@ -97,8 +97,8 @@ impl Session {
         let t = Instant::now();
         let choice = s.choose_schedule(params, self.copy_budget)?;
         let guard_time = (!choice.probes.is_empty()).then(|| t.elapsed());
-        let copy_guard = (!choice.probes.is_empty() || choice.unprobed.is_some()).then(|| {
-            CopyGuardReport {
+        let copy_guard =
+            (!choice.probes.is_empty() || choice.unprobed.is_some()).then(|| CopyGuardReport {
                 summary: choice.describe(self.copy_budget),
                 measured_elsewhere: (choice.params.extra_still_levels > 0
                     && !GpuSynthesizer::output_within_probe(params))
@@ -106,8 +106,7 @@ impl Session {
                     let probe = GpuSynthesizer::probe_params(params);
                     [probe.width, probe.height]
                 }),
-            }
-        });
+            });
         let chosen = choice.params;
         let probe = choice.result;
         let reporting_levels = self.report_levels(params, windowed);

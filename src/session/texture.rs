@@ -102,11 +102,15 @@ pub struct Texture {
 impl Texture {
     /// Width of the output image in pixels (magnified, if it is).
     pub fn width(&self) -> u32 {
-        self.magnified.as_ref().map_or(self.synthesis.width, |m| m.width)
+        self.magnified
+            .as_ref()
+            .map_or(self.synthesis.width, |m| m.width)
     }
     /// Height of the output image in pixels (magnified, if it is).
     pub fn height(&self) -> u32 {
-        self.magnified.as_ref().map_or(self.synthesis.height, |m| m.height)
+        self.magnified
+            .as_ref()
+            .map_or(self.synthesis.height, |m| m.height)
     }
     /// The magnification factor, if magnified.
     pub fn magnification(&self) -> Option<u32> {
