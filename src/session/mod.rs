@@ -19,11 +19,13 @@ use std::path::Path;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
+mod analyze;
 mod build;
 mod builder;
 mod run;
 mod source;
 mod texture;
+pub use analyze::{analyze_image, AnalyzedImage};
 pub use builder::{LevelCallback, SessionBuilder};
 pub use run::{CopyGuardReport, RunTimings, SynthesisTiming, LONG_SYNTHESIS_PIXELS};
 pub use source::{crop_rows, ExemplarSource, Magnified};
