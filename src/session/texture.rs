@@ -257,3 +257,21 @@ pub fn check_image_size(path: &Path, width: u64, height: u64) -> Result<()> {
         _ => Ok(()),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn output_formats_refuse_sizes_they_cannot_encode() {
+        check_image_size(Path::new("a.png"), 70000, 16).unwrap();
+        check_image_size(Path::new("a.gif"), 65535, 16).unwrap();
+        let e = check_image_size(Path::new("a.gif"), 70000, 16).unwrap_err();
+        assert!(
+            e.to_string().contains("GIF images are at most 65535"),
+            "{e}"
+        );
+        check_image_size(Path::new("a.webp"), 16, 16385).unwrap_err();
+        check_image_size(Path::new("a.JPG"), 65536, 1).unwrap_err();
+    }
+}
