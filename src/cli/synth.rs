@@ -167,27 +167,12 @@ fn parse_output(s: &str) -> Result<PathBuf, String> {
     Ok(PathBuf::from(s))
 }
 
-fn parse_copy_budget(s: &str) -> Result<f32, String> {
-    match s.parse::<f32>() {
-        Ok(f) if (0.0..=1.0).contains(&f) => Ok(f),
-        _ => Err(format!(
-            "'{s}': give a fraction of the exemplar's area between 0 and 1 (0 turns the copy guard off)"
-        )),
-    }
-}
-
-pub fn parse_magnify(s: &str) -> Result<u32, String> {
-    match s {
-        "2" | "4" | "8" => Ok(s.parse().unwrap()),
-        _ => Err(format!("'{s}': the magnification factor must be 2, 4 or 8")),
-    }
-}
-
 mod shared;
 mod summary;
+use shared::parse_copy_budget;
 pub use shared::{
-    check_save_extension, check_save_size, cli_hint, crop_rows, magnify_source, read_source,
-    with_hint, Magnified, Source,
+    check_save_extension, check_save_size, cli_hint, crop_rows, magnify_source, parse_magnify,
+    read_source, with_hint, Magnified, Source,
 };
 
 pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {

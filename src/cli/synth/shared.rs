@@ -84,3 +84,21 @@ pub fn check_save_extension(path: &Path) -> CliResult<()> {
 pub fn check_save_size(path: &Path, width: u64, height: u64) -> CliResult<()> {
     Ok(texsyn::session::check_image_size(path, width, height)?)
 }
+
+/// `--copy-budget F`: a fraction of the exemplar's area, 0..=1.
+pub fn parse_copy_budget(s: &str) -> Result<f32, String> {
+    match s.parse::<f32>() {
+        Ok(f) if (0.0..=1.0).contains(&f) => Ok(f),
+        _ => Err(format!(
+            "'{s}': give a fraction of the exemplar's area between 0 and 1 (0 turns the copy guard off)"
+        )),
+    }
+}
+
+/// `--magnify F`: 2, 4 or 8.
+pub fn parse_magnify(s: &str) -> Result<u32, String> {
+    match s {
+        "2" | "4" | "8" => Ok(s.parse().unwrap()),
+        _ => Err(format!("'{s}': the magnification factor must be 2, 4 or 8")),
+    }
+}
