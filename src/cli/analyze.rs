@@ -3,6 +3,8 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
+use texsyn::session::Event;
+
 use clap::Args;
 
 use texsyn::analysis::{self, Analysis, AnalysisOptions};
@@ -69,14 +71,15 @@ pub fn run(ui: &Ui, args: AnalyzeArgs) -> CliResult<()> {
     };
     args.appearance.apply(&mut options)?;
 
-    let t0 = Instant::now();
-    let exemplar = ui.load_exemplar(&args.exemplar)?;
-    let load_time = t0.elapsed();
-    super::check_feature_mask(&options, exemplar.width, exemplar.height)?;
-
-    let t1 = Instant::now();
-    let analysis = analysis::analyze(&exemplar, &options, ui.analysis_progress())?;
-    let analysis_time = t1.elapsed();
+    let mut analysis_progress = ui.analysis_progress();
+    let analyzed =
+        texsyn::session::analyze_image(&args.exemplar, &options, &mut |event| match event {
+            Event::Warning(line) => ui.info(line),
+            Event::Analysis(p) => analysis_progress(p),
+            _ => {}
+        })?;
+    let (analysis, load_time, analysis_time) =
+        (analyzed.analysis, analyzed.load, analyzed.analysis_time);
 
     let t2 = Instant::now();
     analysis.save(&args.output)?;

@@ -1,6 +1,7 @@
 //! The high-level API: a builder that takes an exemplar (image, pixels or a saved
 //! analysis), analyses it if needed, uploads it to a GPU (headless or the caller's
-//! device) and synthesizes textures.
+//! device) and synthesizes textures of any size, with their material maps and
+//! coordinates, magnified if asked.
 //!
 //! ```no_run
 //! let session = texsyn::Session::builder()
@@ -14,11 +15,22 @@
 //! # Ok::<(), texsyn::Error>(())
 //! ```
 
-use std::path::{Path, PathBuf};
-use std::sync::Arc;
+use std::path::Path;
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
 
+mod analyze;
+mod build;
+mod builder;
+mod run;
 mod source;
+mod texture;
+pub use analyze::{analyze_image, AnalyzedImage};
+pub use builder::{LevelCallback, SessionBuilder};
+pub use run::{CopyGuardReport, RunTimings, SynthesisTiming, LONG_SYNTHESIS_PIXELS};
 pub use source::{crop_rows, ExemplarSource, Magnified};
+use texture::MagnifiedImage;
+pub use texture::{check_image_path, check_image_size, MaterialMap, SynthesizedMap, Texture};
 mod benchmark;
 pub use benchmark::{
     AnalysisTiming, Benchmark, BenchmarkProgress, BenchmarkTable, PassRow, PassTable, SizeRow,
@@ -34,28 +46,60 @@ pub use advect::{
     AdvectSummary, SchemeReason, DEFAULT_ATLAS_SIZE,
 };
 
-use crate::analysis::{self, Analysis, AnalysisOptions, Exemplar, Progress};
+use crate::analysis::{self, Analysis, AnalysisOptions, Progress};
 use crate::error::{Error, Result};
-use crate::gpu::copy_guard::DEFAULT_COPY_BUDGET;
 use crate::gpu::synth::{GpuSynthesis, GpuSynthesizer};
 use crate::gpu::GpuContext;
-use crate::passes::{SynthParams, Synthesis};
+use crate::passes::SynthParams;
 
-enum Source {
-    None,
-    Path(PathBuf),
-    Exemplar(Exemplar),
-    Analysis(Analysis),
+/// What a session tells the caller while it builds ([`SessionBuilder::build_reporting`])
+/// and runs ([`Session::run_reporting`]), in this order.
+#[derive(Debug)]
+#[non_exhaustive]
+pub enum Event<'a> {
+    /// A warning about the input, in words (e.g. an animated exemplar: its first frame
+    /// is used).
+    Warning(String),
+    /// The device is ready.
+    Device(&'a GpuContext),
+    /// The analysis's progress.
+    Analysis(Progress),
+    /// The exemplar is analysed, or its analysis loaded (`from_file`).
+    Exemplar {
+        /// The analysis the session synthesizes from.
+        analysis: &'a Analysis,
+        /// Whether it was read from an analysis file.
+        from_file: bool,
+    },
+    /// A note about the output, in words (e.g. how a tileable output of sides that are
+    /// not multiples of 4 is made).
+    Note(String),
+    /// An output assembled from windows: `done` of `total` windows synthesized.
+    Windows {
+        /// Windows done.
+        done: usize,
+        /// Windows in all.
+        total: usize,
+        /// Time since the first window started.
+        elapsed: Duration,
+    },
 }
 
-/// Builds a [`Session`].
-pub struct SessionBuilder {
-    source: Source,
-    options: AnalysisOptions,
-    params: SynthParams,
-    context: Option<GpuContext>,
-    progress: Option<Box<dyn FnMut(Progress)>>,
-    copy_budget: f32,
+/// How long the steps of [`SessionBuilder::build`] took.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct BuildTimings {
+    /// Reading the exemplar image or analysis file.
+    pub read: Duration,
+    /// The analysis (`None`: an analysis was given or read).
+    pub analysis: Option<Duration>,
+    /// Creating the device (alongside the read; zero for the caller's context).
+    pub device: Duration,
+    /// Uploading the tables.
+    pub upload: Duration,
+    /// Building the pipelines (alongside the upload).
+    pub pipelines: Duration,
+    /// The rest of the preparation (a field's Jacobians).
+    pub prepare: Duration,
 }
 
 /// An analysed exemplar on a GPU, ready to synthesize.
@@ -64,41 +108,64 @@ pub struct Session {
     synthesizer: Arc<GpuSynthesizer>,
     params: SynthParams,
     copy_budget: f32,
+    /// The full-resolution colours when magnifying.
+    magnified: Option<Magnified>,
+    /// The exemplar image's own size (before magnification's downsampling).
+    exemplar_size: Option<(u32, u32)>,
+    maps: Vec<MaterialMap>,
+    coordinates: bool,
+    levels: Option<Arc<Mutex<LevelCallback>>>,
+    timings: BuildTimings,
 }
 
 impl Session {
     /// A builder: give it an exemplar (`exemplar_path`, `exemplar` or `analysis`), then
     /// options, then [`SessionBuilder::build`].
+    ///
+    /// ```no_run
+    /// let session = texsyn::Session::builder()
+    ///     .exemplar_path("assets/gravel.png")
+    ///     .size(512, 512)
+    ///     .build()?;
+    /// # Ok::<(), texsyn::Error>(())
+    /// ```
     pub fn builder() -> SessionBuilder {
-        SessionBuilder {
-            source: Source::None,
-            options: AnalysisOptions::default(),
-            params: SynthParams::default(),
-            context: None,
-            progress: None,
-            copy_budget: DEFAULT_COPY_BUDGET,
-        }
+        SessionBuilder::new()
     }
 
-    /// Synthesizes with the session's parameters and reads the result back.
+    /// Synthesizes with the session's parameters and reads the result back: the copy
+    /// guard chooses the schedule ([`Self::schedule`]), then the output is synthesized
+    /// in one piece or assembled from windows, magnified and with its material maps if
+    /// the builder asked for them.
+    ///
+    /// ```no_run
+    /// let session = texsyn::Session::builder()
+    ///     .exemplar_path("assets/gravel.png")
+    ///     .size(512, 512)
+    ///     .build()?;
+    /// session.run()?.save("gravel_512.png")?;
+    /// # Ok::<(), texsyn::Error>(())
+    /// ```
     pub fn run(&self) -> Result<Texture> {
-        self.run_with(&self.params)
+        self.run_inner(&self.params, &mut |_| {})
     }
 
     /// Synthesizes with other parameters (size, window, seed, ...), same exemplar. The
     /// jitter schedule goes through the copy guard ([`Self::schedule`]).
+    ///
+    /// ```no_run
+    /// # let session = texsyn::Session::builder().exemplar_path("a.png").build()?;
+    /// let right = texsyn::SynthParams { origin: [256, 0], ..session.params().clone() };
+    /// let neighbour = session.run_with(&right)?; // fits the run() output on its right
+    /// # Ok::<(), texsyn::Error>(())
+    /// ```
     pub fn run_with(&self, params: &SynthParams) -> Result<Texture> {
-        let choice = self.synthesizer.choose_schedule(params, self.copy_budget)?;
-        let s = match choice.result {
-            Some(s) => s,
-            None => self.synthesizer.synthesize_to_host(&choice.params)?,
-        };
-        Ok(Texture {
-            synthesis: s,
-            channels: self.analysis().channels,
-            exemplar_size: [self.analysis().width, self.analysis().height],
-            tileable: self.analysis().tileable,
-        })
+        self.run_inner(params, &mut |_| {})
+    }
+
+    /// How long the steps of building the session took.
+    pub fn timings(&self) -> &BuildTimings {
+        &self.timings
     }
 
     /// Synthesizes into a new GPU texture (`Rgba8Unorm`); only the copy guard's probe
@@ -173,212 +240,70 @@ impl Session {
     }
 }
 
-impl SessionBuilder {
-    /// The exemplar: an image file, or a saved analysis (`texsyn analyze`), told apart
-    /// by content.
-    pub fn exemplar_path(mut self, path: impl AsRef<Path>) -> Self {
-        self.source = Source::Path(path.as_ref().to_path_buf());
-        self
+/// The error for an output larger than the device allows, checked before the analysis
+/// and the plan (the plan rejects huge outputs with a less specific message). The buffer
+/// check is a lower bound (the finest level alone); [`GpuSynthesizer::fits`] checks the
+/// whole pyramid.
+fn check_output_size(ctx: &GpuContext, width: u32, height: u32) -> Result<()> {
+    let limits = ctx.limits();
+    let max_dim = limits.max_texture_dimension_2d;
+    let too_large = |limit: String| Error::TooLarge {
+        what: "output",
+        width,
+        height,
+        limit,
+        hint: "synthesize it in windows (SynthParams::origin) and assemble them",
+    };
+    if width > max_dim || height > max_dim {
+        return Err(too_large(format!("at most {max_dim} pixels a side")));
     }
-
-    /// An exemplar already in memory (e.g. [`Exemplar::from_rgba8`]).
-    pub fn exemplar(mut self, exemplar: Exemplar) -> Self {
-        self.source = Source::Exemplar(exemplar);
-        self
+    let bytes = width as u64 * height as u64 * 8;
+    let max = limits
+        .max_storage_buffer_binding_size
+        .min(limits.max_buffer_size);
+    if bytes > max {
+        return Err(too_large(format!(
+            "its coordinate pyramid needs more than {} MiB in one buffer, the device allows {} MiB",
+            bytes >> 20,
+            max >> 20
+        )));
     }
+    Ok(())
+}
 
-    /// An analysis made earlier; skips the analysis.
-    pub fn analysis(mut self, analysis: Analysis) -> Self {
-        self.source = Source::Analysis(analysis);
-        self
+/// How a tileable output whose sides are not multiples of 4 is made, in words: each
+/// level's period is half the finer one's, rounded up, and an odd period (or an odd
+/// half) cannot be upsampled coherently across the wrap.
+fn tileable_note(s: &GpuSynthesizer, params: &SynthParams) -> Result<Option<String>> {
+    let (width, height) = (params.width, params.height);
+    if !params.tileable_output || (width % 4 == 0 && height % 4 == 0) {
+        return Ok(None);
     }
-
-    /// Analysis options (k, exclusion radius, tileability, feature mask, appearance
-    /// space); ignored when the source is an analysis.
-    pub fn analysis_options(mut self, options: AnalysisOptions) -> Self {
-        self.options = options;
-        self
-    }
-
-    /// Similarity-set size (default 2).
-    pub fn k(mut self, k: u32) -> Self {
-        self.options.k = k;
-        self
-    }
-
-    /// Force tileable (wrap-around) or non-tileable handling; default: detected.
-    pub fn tileable(mut self, tileable: bool) -> Self {
-        self.options.tileable = Some(tileable);
-        self
-    }
-
-    /// All synthesis parameters at once (the other setters change single fields).
-    pub fn params(mut self, params: SynthParams) -> Self {
-        self.params = params;
-        self
-    }
-
-    /// Output size in pixels (default 256x256).
-    pub fn size(mut self, width: u32, height: u32) -> Self {
-        self.params.width = width;
-        self.params.height = height;
-        self
-    }
-
-    /// Random seed (default 1): the same seed gives the same bytes.
-    pub fn seed(mut self, seed: u32) -> Self {
-        self.params.seed = seed;
-        self
-    }
-
-    /// Per-level randomness (index = level, coarsest first; the last value repeats).
-    pub fn randomness(mut self, r: Vec<f32>) -> Self {
-        self.params.randomness = r;
-        self
-    }
-
-    /// Correction passes per coarse level (default 4; see [`SynthParams::passes`]).
-    pub fn passes(mut self, passes: u32) -> Self {
-        self.params.passes = passes;
-        self
-    }
-
-    /// Correction passes at the second-finest level (default: `passes`, at most 2 in an
-    /// isometric synthesis from exemplars of 256x256 px and more, 3 from smaller ones
-    /// without a feature channel, also along a field; see
-    /// [`SynthParams::second_finest_passes`]).
-    pub fn second_finest_passes(mut self, passes: u32) -> Self {
-        self.params.second_finest_passes = Some(passes);
-        self
-    }
-
-    /// Score the similarity sets on every `n`-th correction pass only (default 1; see
-    /// [`SynthParams::sets_every`]).
-    pub fn sets_every(mut self, n: u32) -> Self {
-        self.params.sets_every = n;
-        self
-    }
-
-    /// Bias towards coherent candidates, 0 to 4 (default 1; see
-    /// [`SynthParams::coherence`]).
-    pub fn coherence(mut self, c: f32) -> Self {
-        self.params.coherence = c;
-        self
-    }
-
-    /// The output is the window at `(x, y)` of the unbounded texture (default `0, 0`):
-    /// windows of the same session and seed fit together (see [`SynthParams::origin`]).
-    pub fn window(mut self, x: i32, y: i32) -> Self {
-        self.params.origin = [x, y];
-        self
-    }
-
-    /// Anisometric synthesis along a Jacobian field (see [`crate::field`]).
-    pub fn field(mut self, field: crate::field::Field) -> Self {
-        self.params.field = Some(field);
-        self
-    }
-
-    /// A texture of its own with thin margins, faster than an exact window of the
-    /// unbounded texture (default `false`; see [`SynthParams::standalone`]).
-    pub fn standalone(mut self, on: bool) -> Self {
-        self.params.standalone = on;
-        self
-    }
-
-    /// Blend colours across patch seams (default `true`; see [`SynthParams::seam_blend`]).
-    pub fn seam_blend(mut self, on: bool) -> Self {
-        self.params.seam_blend = on;
-        self
-    }
-
-    /// Output one period of a seamlessly tiling texture.
-    pub fn tileable_output(mut self, on: bool) -> Self {
-        self.params.tileable_output = on;
-        self
-    }
-
-    /// Run on the caller's device instead of creating a headless one.
-    pub fn context(mut self, context: GpuContext) -> Self {
-        self.context = Some(context);
-        self
-    }
-
-    /// Called as the analysis goes: when each stage of a level starts, during the
-    /// similarity-set search and after each level ([`Progress::stage`] says which).
-    pub fn on_progress(mut self, f: impl FnMut(Progress) + 'static) -> Self {
-        self.progress = Some(Box::new(f));
-        self
-    }
-
-    /// The copy guard's budget, 0..=1 (default [`DEFAULT_COPY_BUDGET`], 0 = no guard,
-    /// the default schedule always): the largest verbatim copy, as a fraction of the
-    /// exemplar, that a stiller schedule may make (see [`crate::gpu::copy_guard`]).
-    /// It is measured on the window at the origin of the output's size (at least
-    /// 512x512) and holds there: windows elsewhere can copy more
-    /// ([`GpuSynthesizer::output_within_probe`](crate::GpuSynthesizer::output_within_probe));
-    /// 0 bounds the copies at any size and place.
-    pub fn copy_budget(mut self, budget: f32) -> Self {
-        self.copy_budget = budget;
-        self
-    }
-
-    /// Loads and analyses the exemplar (unless given an analysis), creates or takes the
-    /// GPU context, checks the parameters and uploads the tables.
-    pub fn build(self) -> Result<Session> {
-        let mut progress = self.progress;
-        let mut report = |p: Progress| {
-            if let Some(f) = progress.as_mut() {
-                f(p)
+    Ok(Some(match s.plan_for(params)?.torus {
+        Some(t) => format!(
+            "tileable: synthesized on a {}x{} torus and resampled to {width}x{height} \
+             (sides that are multiples of 4 wrap cleanly{})",
+            t.period[0],
+            t.period[1],
+            if t.period[0] % 4 != 0 || t.period[1] % 4 != 0 {
+                "; a side under 8 pixels keeps its period and may show a faint seam"
+            } else {
+                ""
             }
-        };
-        let context = match self.context {
-            Some(c) => c,
-            None => GpuContext::headless()?,
-        };
-        let fits = |w, h| crate::gpu::synth::check_exemplar_fits(&context, w, h, self.options.k);
-        let analysis = match self.source {
-            Source::None => {
-                return Err(Error::InvalidParameter(
-                    "no exemplar given: call exemplar_path, exemplar or analysis".into(),
-                ))
-            }
-            Source::Analysis(a) => a,
-            Source::Exemplar(e) => {
-                fits(e.width, e.height)?;
-                analysis::analyze(&e, &self.options, &mut report)?
-            }
-            Source::Path(p) => {
-                if is_analysis_file(&p)? {
-                    Analysis::load(&p)?
-                } else {
-                    let e = crate::image_io::load_exemplar(&p)?;
-                    fits(e.width, e.height)?;
-                    analysis::analyze(&e, &self.options, &mut report)?
-                }
-            }
-        };
-        // Validate the parameters before uploading.
-        if !self.copy_budget.is_finite() || !(0.0..=1.0).contains(&self.copy_budget) {
-            return Err(Error::InvalidParameter(format!(
-                "copy budget {} must be between 0 and 1",
-                self.copy_budget
-            )));
-        }
-        analysis.validate()?;
-        crate::passes::SynthPlan::new(&analysis, &self.params)?;
-        let synthesizer = Arc::new(GpuSynthesizer::new(&context, Arc::new(analysis))?);
-        // The pipelines (and the rasterized field) now, so that `run` only synthesizes.
-        if synthesizer.fits(&self.params) {
-            synthesizer.prepare(&self.params)?;
-        }
-        Ok(Session {
-            context,
-            synthesizer,
-            params: self.params,
-            copy_budget: self.copy_budget,
-        })
-    }
+        ),
+        None => format!(
+            "note: this tileable output keeps its own periods ({}), and a side that is \
+             not a multiple of 4 shows a faint seam where the tiles meet (e.g. {}x{} \
+             tiles cleanly)",
+            if width.min(height) < crate::passes::plan::TORUS_MIN_SIDE {
+                "a side under 8 pixels"
+            } else {
+                "its torus would not fit the device"
+            },
+            width.next_multiple_of(4),
+            height.next_multiple_of(4)
+        ),
+    }))
 }
 
 /// Loads an analysis file or analyses an image, whichever `path` holds.
@@ -392,62 +317,6 @@ pub fn load_source(
     } else {
         let ex = crate::image_io::load_exemplar(path)?;
         analysis::analyze(&ex, options, progress)
-    }
-}
-
-/// A synthesized texture on the host.
-#[derive(Clone, Debug)]
-pub struct Texture {
-    /// Colours and exemplar coordinates, read back from the GPU.
-    pub synthesis: Synthesis,
-    /// 1 for grey exemplars, 3 for colour.
-    pub channels: u32,
-    /// Width and height of the (analysed) exemplar, in pixels.
-    pub exemplar_size: [u32; 2],
-    /// Whether the exemplar was handled as tileable (coordinates wrap around it).
-    pub tileable: bool,
-}
-
-impl Texture {
-    /// Width in pixels.
-    pub fn width(&self) -> u32 {
-        self.synthesis.width
-    }
-    /// Height in pixels.
-    pub fn height(&self) -> u32 {
-        self.synthesis.height
-    }
-    /// Fractional bits of [`Texture::coords`]: 0 (isometric) or 8 (anisometric).
-    pub fn coord_frac(&self) -> u32 {
-        self.synthesis.coord_frac
-    }
-    /// RGBA8 bytes, row-major.
-    pub fn rgba8(&self) -> Vec<u8> {
-        self.synthesis.colors.iter().flatten().copied().collect()
-    }
-    /// Exemplar coordinates per pixel, in units of `2^-coord_frac()` exemplar pixels.
-    pub fn coords(&self) -> &[[i32; 2]] {
-        &self.synthesis.coords
-    }
-    /// Saves the colours (PNG, or another format by extension), atomically.
-    pub fn save(&self, path: impl AsRef<Path>) -> Result<()> {
-        crate::image_io::save_image_atomic(
-            path.as_ref(),
-            self.width(),
-            self.height(),
-            self.channels,
-            &self.rgba8(),
-        )
-    }
-    /// Saves the coordinate map as a float EXR (R = x, G = y, exemplar pixels),
-    /// atomically.
-    pub fn save_coords(&self, path: impl AsRef<Path>) -> Result<()> {
-        crate::image_io::save_coords_exr_f32_atomic(
-            path.as_ref(),
-            self.width(),
-            self.height(),
-            &self.synthesis.coords_f32(),
-        )
     }
 }
 

@@ -75,6 +75,30 @@ impl ExemplarSource {
         Ok(())
     }
 
+    /// Refuses an analysis file (read from `path`) made with another similarity-set
+    /// size or tileability than the ones given (`None`: whatever the file has).
+    pub fn check_matches(&self, path: &Path, k: Option<u32>, tileable: Option<bool>) -> Result<()> {
+        let ExemplarSource::Analysis(analysis) = self else {
+            return Ok(());
+        };
+        if let Some(k) = k.filter(|&k| k != analysis.k) {
+            return Err(Error::InvalidParameter(format!(
+                "--k {k} does not match the analysis file {} (k = {}); drop --k or re-run `texsyn analyze --k {k}`",
+                path.display(),
+                analysis.k
+            )));
+        }
+        if let Some(t) = tileable.filter(|&t| t != analysis.tileable) {
+            let flag = if t { "--tileable" } else { "--no-tileable" };
+            return Err(Error::InvalidParameter(format!(
+                "{flag} does not match the analysis file {} (analysed as {}tileable); drop {flag} or re-run `texsyn analyze {flag}`",
+                path.display(),
+                if analysis.tileable { "" } else { "not " }
+            )));
+        }
+        Ok(())
+    }
+
     /// The exemplar image's size, `None` for an analysis.
     pub fn image_size(&self) -> Option<(u32, u32)> {
         match self {
@@ -104,6 +128,18 @@ impl ExemplarSource {
                 Ok((ExemplarSource::Image(small), magnified))
             }
         }
+    }
+}
+
+/// A warning when the image at `path` is an animation: texsyn uses its first frame.
+pub fn animation_warning(path: &Path) -> Option<String> {
+    match crate::image_io::animation_frames(path) {
+        Some(n @ 2..) => Some(format!(
+            "warning: {} is an animation of {n} frames; texsyn uses its first frame \
+             (extract another frame to use it)",
+            path.display()
+        )),
+        _ => None,
     }
 }
 
