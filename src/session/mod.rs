@@ -19,6 +19,12 @@ use std::sync::Arc;
 
 mod source;
 pub use source::{crop_rows, ExemplarSource, Magnified};
+#[cfg(feature = "gltf")]
+mod surface;
+#[cfg(feature = "gltf")]
+pub use surface::{
+    MaterialMap, SurfaceBuilder, SurfaceEvent, SurfaceSession, SurfaceTimings, TexturedSurface,
+};
 
 use crate::analysis::{self, Analysis, AnalysisOptions, Exemplar, Progress};
 use crate::error::{Error, Result};
