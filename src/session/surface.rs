@@ -211,7 +211,7 @@ impl SurfaceSession {
     /// use texsyn::session::SurfaceSession;
     /// use texsyn::surface::tangent_field::DirectionSource;
     ///
-    /// let textured = SurfaceSession::builder()
+    /// SurfaceSession::builder()
     ///     .mesh(texsyn::surface::Mesh::torus(1.0, 0.4, 64, 32))
     ///     .exemplar_path("assets/brick.png")
     ///     .direction(DirectionSource::Symmetric { n: 2, up: glam::Vec3::Y, iterations: 200 })
