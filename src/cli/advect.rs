@@ -13,8 +13,6 @@ use super::field::FieldSpec;
 use super::frames::FrameOutput;
 use super::{parse_size, CliResult, TileArgs, Ui, ADVANCED, CONTROLS, LOOK, OUTPUT};
 
-/// What a frame moves each pixel by (`eval --flow` warps its frames by it too).
-
 /// Advect a synthesized texture along a flow, frame by frame
 #[derive(Args, Debug)]
 #[command(

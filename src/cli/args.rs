@@ -176,21 +176,6 @@ impl AppearanceArgs {
     }
 }
 
-/// Checks the loaded `--feature-mask` (if any) against the exemplar it goes with: its
-/// size first, then that it is not blank. The analysis accepts a blank mask (it changes
-/// nothing), but given on the command line one is a mistake (an empty or inverted export).
-pub fn check_feature_mask(
-    options: &texsyn::AnalysisOptions,
-    width: u32,
-    height: u32,
-) -> CliResult<()> {
-    if let Some(mask) = &options.feature_mask {
-        mask.check_size(width, height)?;
-        mask.check_not_blank()?;
-    }
-    Ok(())
-}
-
 pub fn parse_feature_weight(s: &str) -> Result<f32, String> {
     parse_checked(s, texsyn::analysis::feature::check_weight)
 }

@@ -6,7 +6,6 @@ mod advect;
 mod analyze;
 mod args;
 mod bench;
-mod device;
 mod eval;
 mod field;
 mod frames;
@@ -20,8 +19,7 @@ mod ui;
 use clap::{Parser, Subcommand};
 
 // The shared pieces, at the paths the subcommands name them by (`super::X`).
-pub use args::{check_feature_mask, AppearanceArgs, FieldArg, ScheduleArgs, SeedArg, TileArgs};
-pub use device::{check_output_size, max_buffer_binding, WINDOW_HINT};
+pub use args::{AppearanceArgs, FieldArg, ScheduleArgs, SeedArg, TileArgs};
 pub use output::{
     check_distinct_outputs, check_output_dir, check_outputs_not_inputs, check_parent_dir,
     parse_named_output, takes_new_files,

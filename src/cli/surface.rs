@@ -1,21 +1,17 @@
 //! `texsyn surface`: texture a mesh by synthesizing directly in its atlas.
 
-use std::path::PathBuf;
-use std::sync::Arc;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use clap::Args;
-use texsyn::gpu::synth::{ExtraMap, GpuSynthesizer};
-use texsyn::gpu::GpuContext;
-use texsyn::surface::atlas::{AtlasOptions, AtlasSource};
-use texsyn::surface::gltf_io::{self, MaterialImages};
-use texsyn::surface::pipeline::{self, SurfaceOptions};
-use texsyn::surface::render::{self, RenderOptions, SurfaceTexture};
-use texsyn::surface::seams;
-use texsyn::surface::tangent_field::{DirectionSource, ScaleSource, DIRECTION_HELP};
-use texsyn::{AnalysisOptions, SynthParams};
+use texsyn::session::{SurfaceEvent, SurfaceMap, SurfaceSession};
+use texsyn::surface::atlas::AtlasSource;
+use texsyn::surface::gltf_io;
+use texsyn::surface::render::RenderOptions;
+use texsyn::surface::tangent_field::{DirectionSpec, ScaleSource, DIRECTION_HELP};
+use texsyn::SynthParams;
 
-use super::synth::{read_source, Magnified, Source};
+use super::synth::{read_source, Source};
 use super::{
     check_output_dir, fail, fmt_duration, parse_coherence, parse_randomness, CliResult, Randomness,
     TileArgs, Ui, ADVANCED, CONTROLS, LOOK, OUTPUT,
@@ -79,7 +75,7 @@ pub struct SurfaceArgs {
     /// Where the exemplar's x axis goes on the surface (SPEC: see --help)
     #[arg(long, value_name = "SPEC", default_value = "up", value_parser = parse_direction,
           long_help = DIRECTION_HELP, help_heading = LOOK)]
-    pub field: DirectionArg,
+    pub field: DirectionSpec,
 
     /// Magnify 2, 4 or 8 times (the atlas texture is that many times larger)
     ///
@@ -149,69 +145,19 @@ fn parse_scale(s: &str) -> Result<ScaleSource, String> {
     s.parse::<ScaleSource>().map_err(|e| e.to_string())
 }
 
-/// A `--field` as given: `constraints:FILE` is read when the command runs (a missing
-/// or bad file is a run error, exit 1, like other input files); the rest is parsed now.
-#[derive(Clone, Debug)]
-pub enum DirectionArg {
-    Parsed(DirectionSource),
-    Constraints(PathBuf),
+fn parse_direction(s: &str) -> Result<DirectionSpec, String> {
+    s.parse::<DirectionSpec>().map_err(|e| e.to_string())
 }
 
-impl DirectionArg {
-    fn load(&self) -> CliResult<DirectionSource> {
-        match self {
-            DirectionArg::Parsed(d) => Ok(d.clone()),
-            DirectionArg::Constraints(path) => Ok(DirectionSource::Constraints(
-                texsyn::surface::tangent_field::read_constraints(path)?,
-            )),
-        }
-    }
-}
-
-fn parse_direction(s: &str) -> Result<DirectionArg, String> {
-    match s.strip_prefix("constraints:").map(str::trim) {
-        Some(path) if !path.is_empty() => Ok(DirectionArg::Constraints(PathBuf::from(path))),
-        _ => s
-            .parse::<DirectionSource>()
-            .map(DirectionArg::Parsed)
-            .map_err(|e| e.to_string()),
-    }
-}
-
-/// Refuses an atlas the device cannot synthesize before the mesh work (minutes for
-/// large atlases): the synthesis keeps a coordinate pyramid and a Jacobian per texel
-/// (16 bytes, about 4/3 of the atlas over all levels) in one buffer, and the texture
-/// (times the magnification) must fit the device's texture size.
-fn check_atlas_fits(ctx: &GpuContext, atlas: u32, magnify: u32) -> CliResult<()> {
-    let limits = ctx.limits();
-    let side = atlas as u64 * magnify as u64;
-    if side > limits.max_texture_dimension_2d as u64 {
-        return Err(fail(format!(
-            "--atlas-size {atlas}{}: the atlas texture would be {side} texels a side, the device allows {}; give a smaller --atlas-size",
-            if magnify > 1 { format!(" with --magnify {magnify}") } else { String::new() },
-            limits.max_texture_dimension_2d
-        )));
-    }
-    let bytes = (atlas as u64).pow(2) * 16 * 4 / 3;
-    let max = super::max_buffer_binding(ctx);
-    if bytes > max {
-        return Err(fail(format!(
-            "--atlas-size {atlas}: its synthesis needs about {} MiB in one buffer, the device allows {} MiB; give a smaller --atlas-size (at most about {})",
-            bytes >> 20,
-            max >> 20,
-            (((max * 3 / 4) / 16) as f64).sqrt() as u64
-        )));
-    }
-    Ok(())
-}
-
-pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
+/// Refuses bad output paths before any work: a writable folder, an image extension the
+/// library writes, no output twice, no output over an input, a .glb for the glTF.
+fn check_outputs(args: &SurfaceArgs) -> CliResult<()> {
     check_output_dir(&args.output)?;
     for p in [&args.render, &args.atlas_out].into_iter().flatten() {
         check_output_dir(p)?;
         super::synth::check_save_extension(p)?;
     }
-    let outputs: Vec<&std::path::Path> = [
+    let outputs: Vec<&Path> = [
         Some(&args.output),
         args.render.as_ref(),
         args.atlas_out.as_ref(),
@@ -221,8 +167,7 @@ pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
     .map(|p| p.as_path())
     .collect();
     super::check_distinct_outputs(&outputs)?;
-    let mut inputs: Vec<(&str, &std::path::Path)> =
-        vec![("mesh", &args.mesh), ("exemplar", &args.exemplar)];
+    let mut inputs: Vec<(&str, &Path)> = vec![("mesh", &args.mesh), ("exemplar", &args.exemplar)];
     for (what, p) in [
         ("normal map", &args.normal_map),
         ("roughness map", &args.roughness_map),
@@ -231,6 +176,11 @@ pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
         inputs.extend(p.as_deref().map(|p| (what, p)));
     }
     super::check_outputs_not_inputs(&outputs, &inputs)?;
+    Ok(())
+}
+
+pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
+    check_outputs(&args)?;
     // A constraints file is read now, before the analysis and the mesh work.
     let direction = args.field.load()?;
     if args.output.extension().and_then(|e| e.to_str()) != Some("glb") {
@@ -243,364 +193,106 @@ pub fn run(ui: &Ui, args: SurfaceArgs) -> CliResult<()> {
         return Err(fail("--views must be 1-16 and --view-size 16-4096"));
     }
 
+    // The inputs, read in this order so that the first bad one is the one reported.
     let t = Instant::now();
-    let (mut mesh, load) = gltf_io::load_mesh(&args.mesh)?;
-    ui.info(format!(
-        "mesh: {} ({} vertices, {} triangles, {} primitive(s){}{}{})",
-        args.mesh.display(),
-        mesh.positions.len(),
-        mesh.triangles.len(),
-        load.primitives,
-        if load.skipped_non_triangle > 0 {
-            format!(
-                ", {} non-triangle primitive(s) skipped",
-                load.skipped_non_triangle
-            )
-        } else {
-            String::new()
-        },
-        if load.repair.dropped_degenerate > 0 {
-            format!(
-                ", {} degenerate triangles dropped",
-                load.repair.dropped_degenerate
-            )
-        } else {
-            String::new()
-        },
-        if load.repair.computed_normals {
-            ", normals computed"
-        } else {
-            ""
-        },
-    ));
-    mesh.validate_and_repair()?;
+    let (mesh, load) = gltf_io::load_mesh(&args.mesh)?;
     let load_time = t.elapsed();
-
-    let mut source = read_source(ui, &args.exemplar, None, args.tile.get())?;
-    // Material maps, aligned with the exemplar: (normal?, image) in material order.
-    let mut material_maps = Vec::new();
-    for (path, normal, option) in [
-        (&args.normal_map, true, "--normal-map"),
-        (&args.roughness_map, false, "--roughness-map"),
-        (&args.occlusion_map, false, "--occlusion-map"),
-    ] {
-        material_maps.push(match path {
-            Some(p) => Some((
-                ui.load_exemplar(p)
-                    .map_err(|e| fail(format!("{option}: {e}")))?,
-                normal,
-                p.clone(),
-            )),
-            None => None,
-        });
-    }
-    // Material maps are aligned with the exemplar as given (full resolution with
-    // --magnify: they are magnified with the colours).
-    let full_size = match &source {
-        Source::Image(ex) => Some((ex.width, ex.height)),
-        Source::Analysis(_) => None,
-    };
-    let mut hi_res = None;
-    if let Some(f) = args.magnify {
-        let (small, hi) = super::synth::magnify_source(source, f)?;
-        source = small;
-        hi_res = Some(hi);
-    }
-
-    let ctx = GpuContext::headless()?;
-    ui.info(format!("adapter: {}", ctx.describe()));
-    check_atlas_fits(&ctx, args.atlas_size, args.magnify.unwrap_or(1))?;
-    let t = Instant::now();
-    source.check_fits(&ctx, AnalysisOptions::default().k)?;
-    let analysis = match source {
-        Source::Analysis(a) => a,
-        Source::Image(ex) => {
-            let options = AnalysisOptions {
-                tileable: args.tile.get(),
-                // The atlas synthesis leaves the finest level uncorrected, as `synth`
-                // does: its similarity sets would go unread (same bytes without them).
-                finest_sets: false,
-                ..AnalysisOptions::default()
-            };
-            texsyn::analysis::analyze(&ex, &options, ui.analysis_progress())?
-        }
-    };
-    let analysis_time = t.elapsed();
-    let (map_w, map_h) = match (&hi_res, full_size) {
-        (Some(_), Some(size)) => size,
-        _ => (analysis.width, analysis.height),
-    };
-    for (n, _, path) in material_maps.iter().flatten() {
-        if (n.width, n.height) != (map_w, map_h) {
-            return Err(fail(format!(
-                "{} is {}x{}, the exemplar {}x{}: material maps must be aligned with it",
-                path.display(),
-                n.width,
-                n.height,
-                map_w,
-                map_h
-            )));
-        }
-    }
-    let (ex_w, ex_h) = (analysis.width, analysis.height);
-
-    let opts = SurfaceOptions {
-        atlas: AtlasOptions {
-            source: if args.new_atlas {
-                AtlasSource::Generate
-            } else if args.keep_uvs {
-                AtlasSource::Keep
-            } else {
-                AtlasSource::Auto
-            },
-            ..AtlasOptions::for_size(args.atlas_size)
-        },
-        direction,
-        // The texel size counts full-resolution exemplar texels: with --magnify F the
-        // synthesis's exemplar texel is F of them.
-        scale: args.texel_size.clone().map(|s| {
-            let f = args.magnify.unwrap_or(1) as f32;
-            match s {
-                ScaleSource::Constant(v) => ScaleSource::Constant(v * f),
-                ScaleSource::PerVertex(v) => {
-                    ScaleSource::PerVertex(v.into_iter().map(|x| x * f).collect())
-                }
-                ScaleSource::Linear {
-                    axis,
-                    at_min,
-                    at_max,
-                } => ScaleSource::Linear {
-                    axis,
-                    at_min: at_min * f,
-                    at_max: at_max * f,
-                },
-            }
-        }),
-    };
-    ui.progress("preparing the atlas, field and maps...");
-    let t = Instant::now();
-    let prepared = pipeline::prepare(&mesh, analysis.levels.len(), &opts)?;
-    let prepare_time = t.elapsed();
-    ui.end_progress();
     ui.info(format!(
-        "atlas: {0}x{0}, {1} charts, {2:.0}% covered, {3}",
-        prepared.atlas.size,
-        prepared.atlas.chart_count,
-        prepared.atlas.coverage() * 100.0,
-        if prepared.atlas.generated {
-            format!("built with xatlas ({})", prepared.atlas.note)
-        } else {
-            "the mesh's TEXCOORD_0".to_string()
-        }
+        "mesh: {} {}",
+        args.mesh.display(),
+        load.summary(&mesh)
     ));
-    if let Some(s) = prepared.texel_size {
-        ui.info(format!(
-            "texel size: {:.5} world units per exemplar texel",
-            s / args.magnify.unwrap_or(1) as f32
-        ));
+    let source = read_source(ui, &args.exemplar, None, args.tile.get())?;
+    let from_analysis = matches!(source, Source::Analysis(_));
+    let mut builder = SurfaceSession::builder().mesh(mesh).exemplar_source(source);
+    let load_map = |path: &Option<PathBuf>, option: &str| -> CliResult<Option<SurfaceMap>> {
+        let Some(p) = path else { return Ok(None) };
+        let image = ui
+            .load_exemplar(p)
+            .map_err(|e| fail(format!("{option}: {e}")))?;
+        Ok(Some(SurfaceMap::new(image, p.display().to_string())))
+    };
+    if let Some(m) = load_map(&args.normal_map, "--normal-map")? {
+        builder = builder.normal_map(m);
     }
-    let sing = prepared.field.singularities().len();
-    if sing > 0 {
-        ui.info(format!("field: {sing} singular vertices"));
+    if let Some(m) = load_map(&args.roughness_map, "--roughness-map")? {
+        builder = builder.roughness_map(m);
     }
-    if prepared.report.clamped > 0 {
-        ui.info(format!(
-            "note: {} atlas texels ask for more than 8x stretch; clamped",
-            prepared.report.clamped
+    if let Some(m) = load_map(&args.occlusion_map, "--occlusion-map")? {
+        builder = builder.occlusion_map(m);
+    }
+    if args.magnify.is_some() && from_analysis {
+        return Err(fail(
+            "--magnify needs the exemplar image (its full-resolution colours), not an analysis file",
         ));
     }
 
-    let t = Instant::now();
-    let synthesizer = GpuSynthesizer::new(&ctx, Arc::new(analysis))?;
-    let upload_time = t.elapsed();
-    let base = SynthParams {
-        seed: args.seed.seed,
-        randomness: args.randomness.map(|r| r.0).unwrap_or_default(),
-        passes: args.passes,
-        coherence: args.coherence,
-        ..SynthParams::default()
-    };
-    let extra: Vec<ExtraMap> = material_maps
-        .iter()
-        .flatten()
-        .map(|(n, normal, _)| ExtraMap {
-            // With --magnify: cropped as the exemplar was (to a multiple of the factor).
-            pixels: match &hi_res {
-                Some(Magnified {
-                    width: hw,
-                    height: hh,
-                    ..
-                }) => super::synth::crop_rows(&n.colors, n.width, *hw, *hh),
-                None => n.colors.clone(),
-            },
-            normal: *normal,
-            green_down: *normal && args.normal_green_down,
+    builder = builder
+        .atlas_size(args.atlas_size)
+        .atlas_source(match (args.new_atlas, args.keep_uvs) {
+            (true, _) => AtlasSource::Generate,
+            (_, true) => AtlasSource::Keep,
+            _ => AtlasSource::Auto,
         })
-        .collect();
-    let t = Instant::now();
-    let n = prepared.atlas.size;
-    // One synthesis: with --magnify the magnification returns the atlas synthesis too
-    // (for the seam figures and the render), with the magnified colours and maps.
-    let (synthesis, base_rgba, maps, map_size) = match &hi_res {
-        Some(Magnified {
-            pixels: hi,
-            width: hw,
-            height: hh,
-            factor: f,
-        }) => {
-            let params = pipeline::atlas_params(&prepared, &base);
-            let m =
-                synthesizer.synthesize_magnified_with_maps(&params, hi, *hw, *hh, *f, &extra)?;
-            (m.synthesis, m.colors, m.maps, (m.width, m.height))
-        }
-        None => {
-            let (s, maps) = pipeline::synthesize(&synthesizer, &prepared, &base, &extra)?;
-            let colors = s.colors.clone();
-            (s, colors, maps, (n, n))
-        }
-    };
-    ctx.take_uncaptured_errors()?;
-    let synth_time = t.elapsed();
-    let seam = seams::seam_report(&prepared.atlas, &synthesis.colors);
-    ui.info(format!(
-        "seams: {} seam edges, colour step across seams {:.2} vs {:.2} between neighbouring texels (ratio {:.2})",
-        seam.seam_edges, seam.seam, seam.interior, seam.ratio
-    ));
-
-    // The texture: the atlas itself, or magnified from the full-resolution exemplar.
-    let to_image = |w: u32, h: u32, px: Vec<u8>| {
-        image::RgbaImage::from_raw(w, h, px).ok_or_else(|| fail("internal: image size mismatch"))
-    };
-    let base_color = to_image(
-        map_size.0,
-        map_size.1,
-        base_rgba.into_iter().flatten().collect(),
-    )?;
-    // The synthesized maps, in the order of `material_maps`' present entries.
-    let mut synthesized = maps.into_iter();
-    let mut next_map =
-        |present: bool, pack: fn([u8; 4]) -> [u8; 4]| -> CliResult<Option<image::RgbaImage>> {
-            if !present {
-                return Ok(None);
-            }
-            let m = synthesized
-                .next()
-                .ok_or_else(|| fail("internal: missing material map"))?;
-            Ok(Some(to_image(
-                map_size.0,
-                map_size.1,
-                m.into_iter().flat_map(pack).collect(),
-            )?))
-        };
-    // glTF normal textures have green up: a green-down map (rotated in its own
-    // convention) has its green flipped.
-    let normal = if args.normal_green_down {
-        next_map(material_maps[0].is_some(), |p| {
-            [p[0], 255 - p[1], p[2], p[3]]
-        })?
-    } else {
-        next_map(material_maps[0].is_some(), |p| p)?
-    };
-    // glTF packs roughness in green (metallic in blue, 0 here), occlusion in red.
-    let metallic_roughness = next_map(material_maps[1].is_some(), |p| [0, p[0], 0, 255])?;
-    let occlusion = next_map(material_maps[2].is_some(), |p| [p[0], p[0], p[0], 255])?;
-
-    let t = Instant::now();
-    let mut render_image = None;
-    if let Some(r) = &args.render {
-        let ropts = RenderOptions {
-            view_size: args.view_size,
-            views: args.views,
-            ..RenderOptions::default()
-        };
-        let coords: Vec<[f32; 2]>;
-        let jac: Vec<[f32; 4]>;
-        let texture = match &hi_res {
-            Some(Magnified {
-                pixels: hi,
-                width: hw,
-                height: hh,
-                factor: f,
-            }) => {
-                // Integer exemplar positions are pixel centres in the synthesis.
-                coords = synthesis
-                    .coords_f32()
-                    .iter()
-                    .map(|c| [c[0] + 0.5, c[1] + 0.5])
-                    .collect();
-                jac = pipeline::jacobians_f32(&prepared);
-                SurfaceTexture::Magnified {
-                    coords: &coords,
-                    jacobian: &jac,
-                    width: n,
-                    height: n,
-                    hi_rgba: bytemuck::cast_slice(hi),
-                    hi_width: *hw,
-                    hi_height: *hh,
-                    factor: *f as f32,
-                }
-            }
-            None => SurfaceTexture::Color {
-                rgba: base_color.as_raw(),
-                width: base_color.width(),
-                height: base_color.height(),
-            },
-        };
-        let img = render::render_views(&ctx, &prepared.atlas.mesh, &texture, &ropts)?;
-        render_image = Some((r, img));
+        .direction(direction)
+        .normal_green_down(args.normal_green_down)
+        .seed(args.seed.seed)
+        .randomness(args.randomness.map(|r| r.0).unwrap_or_default())
+        .passes(args.passes)
+        .coherence(args.coherence);
+    if let Some(s) = args.texel_size.clone() {
+        builder = builder.texel_size(s);
     }
+    if let Some(f) = args.magnify {
+        builder = builder.magnify(f);
+    }
+    if let Some(t) = args.tile.get() {
+        builder = builder.tileable(t);
+    }
+    let mut analysis_progress = ui.analysis_progress();
+    let session = builder
+        .on_progress(move |event| match event {
+            SurfaceEvent::Analysis(p) => analysis_progress(p),
+            SurfaceEvent::Preparing => ui.progress(event.to_string()),
+            _ => ui.info(event.to_string()),
+        })
+        .build()?;
+    let textured = session.run()?;
+    ui.info(format!("seams: {}", textured.seams()));
+
+    let t = Instant::now();
+    let options = RenderOptions {
+        view_size: args.view_size,
+        views: args.views,
+        ..RenderOptions::default()
+    };
+    let render = (args.render.as_ref())
+        .map(|path| Ok::<_, texsyn::Error>((path, textured.render(&options)?)))
+        .transpose()?;
     let render_time = t.elapsed();
-    // All or nothing: every output is encoded and written to its temporary file before
-    // any is renamed over its target (files that existed before stay as they were if
-    // any step fails).
-    use texsyn::image_io::{encode_image, write_files_atomic};
-    let mut files: Vec<(&std::path::Path, Vec<u8>)> = Vec::new();
-    if let Some((r, img)) = &render_image {
-        files.push((
-            r,
-            encode_image(r, img.width(), img.height(), 4, img.as_raw())?,
-        ));
+    let rendered = render.as_ref().map(|(path, img)| (path.as_path(), img));
+    textured.save_all(&args.output, args.atlas_out.as_deref(), rendered)?;
+    if let Some((path, _)) = &render {
+        ui.info(format!("render: {}", path.display()));
     }
-    if let Some(a) = &args.atlas_out {
-        let (w, h) = base_color.dimensions();
-        files.push((a, encode_image(a, w, h, 4, base_color.as_raw())?));
-    }
-    let material = MaterialImages {
-        base_color,
-        normal,
-        metallic_roughness,
-        occlusion,
-    };
-    files.push((
-        &args.output,
-        gltf_io::encode_glb(&prepared.atlas.mesh, &material)?,
-    ));
-    write_files_atomic(&files.iter().map(|(p, b)| (*p, &b[..])).collect::<Vec<_>>())?;
-    if let Some((r, _)) = &render_image {
-        ui.info(format!("render: {}", r.display()));
-    }
-    if let Some(a) = &args.atlas_out {
-        ui.info(format!("atlas image: {}", a.display()));
+    if let Some(path) = &args.atlas_out {
+        ui.info(format!("atlas image: {}", path.display()));
     }
     ui.info(format!("output: {}", args.output.display()));
-    let _ = (ex_w, ex_h);
+    let (times, fmt) = (session.timings(), fmt_duration);
     ui.info(format!(
-        "time: load mesh {}, exemplar analysis {}",
-        fmt_duration(load_time),
-        fmt_duration(analysis_time)
-    ));
-    ui.info(format!(
-        "      preprocessing {} (atlas {}, field {}, Jacobian + indirection maps {})",
-        fmt_duration(prepare_time),
-        fmt_duration(prepared.timings.atlas),
-        fmt_duration(prepared.timings.field),
-        fmt_duration(prepared.timings.maps)
-    ));
-    ui.info(format!(
-        "      GPU upload {}, atlas synthesis + read-back {}, render {}",
-        fmt_duration(upload_time),
-        fmt_duration(synth_time),
-        fmt_duration(render_time)
+        "time: load mesh {}, exemplar analysis {}\n      preprocessing {} (atlas {}, field {}, \
+         Jacobian + indirection maps {})\n      GPU upload {}, atlas synthesis + read-back {}, \
+         render {}",
+        fmt(load_time),
+        fmt(times.analysis),
+        fmt(times.prepare),
+        fmt(times.prepare_steps.atlas),
+        fmt(times.prepare_steps.field),
+        fmt(times.prepare_steps.maps),
+        fmt(times.upload),
+        fmt(textured.synthesis_time()),
+        fmt(render_time)
     ));
     Ok(())
 }

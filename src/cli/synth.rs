@@ -171,8 +171,7 @@ mod shared;
 mod summary;
 use shared::parse_copy_budget;
 pub use shared::{
-    check_save_extension, check_save_size, cli_hint, crop_rows, magnify_source, parse_magnify,
-    read_source, with_hint, Magnified, Source,
+    check_save_extension, check_save_size, cli_hint, parse_magnify, read_source, Source,
 };
 
 pub fn run(ui: &Ui, args: SynthArgs) -> CliResult<()> {

@@ -45,6 +45,12 @@ pub use advect::{
     AdvectCosts, AdvectFrame, AdvectNote, AdvectScheme, AdvectSession, AdvectSessionBuilder,
     AdvectSummary, SchemeReason, DEFAULT_ATLAS_SIZE,
 };
+#[cfg(feature = "gltf")]
+mod surface;
+#[cfg(feature = "gltf")]
+pub use surface::{
+    SurfaceBuilder, SurfaceEvent, SurfaceMap, SurfaceSession, SurfaceTimings, TexturedSurface,
+};
 
 use crate::analysis::{self, Analysis, AnalysisOptions, Progress};
 use crate::error::{Error, Result};

@@ -24,6 +24,18 @@ pub struct SeamReport {
     pub samples: usize,
 }
 
+impl std::fmt::Display for SeamReport {
+    /// `N seam edges, colour step across seams S vs I between neighbouring texels
+    /// (ratio R)`.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} seam edges, colour step across seams {:.2} vs {:.2} between neighbouring texels (ratio {:.2})",
+            self.seam_edges, self.seam, self.interior, self.ratio
+        )
+    }
+}
+
 /// Measures `colors` (RGBA8, the atlas' finest level, row-major). Colours of another
 /// count than the atlas' texels measure nothing: every figure NaN, no edges.
 pub fn seam_report(atlas: &Atlas, colors: &[[u8; 4]]) -> SeamReport {

@@ -3,10 +3,12 @@
 
 use std::path::Path;
 
-use crate::cli::{fail, CliResult, Ui, WINDOW_HINT};
+use crate::cli::{CliResult, Ui};
+
+/// Hint of the "output too large" errors.
+pub const WINDOW_HINT: &str = "synthesize it in windows (--window X,Y) and assemble them";
 
 pub use texsyn::session::ExemplarSource as Source;
-pub use texsyn::session::{crop_rows, Magnified};
 
 /// Reads EXEMPLAR (an analysis file or an image, told apart by content) without
 /// analysing it yet; `--k` / `--tileable` must agree with an analysis file.
@@ -29,16 +31,6 @@ pub fn read_source(
     Ok(source)
 }
 
-/// `--magnify F`: the exemplar downsampled F times and its full-resolution colours.
-pub fn magnify_source(source: Source, f: u32) -> CliResult<(Source, Magnified)> {
-    if let Source::Analysis(_) = source {
-        return Err(fail(
-            "--magnify needs the exemplar image (its full-resolution colours), not an analysis file",
-        ));
-    }
-    Ok(source.magnify(f)?)
-}
-
 /// The library's size errors name its API (`SynthParams::origin`); name the option
 /// (a tileable output is one period: it cannot be split into windows).
 pub fn cli_hint(tileable_output: bool) -> impl Fn(texsyn::Error) -> texsyn::Error {
@@ -55,7 +47,7 @@ pub fn cli_hint(tileable_output: bool) -> impl Fn(texsyn::Error) -> texsyn::Erro
 }
 
 /// `e` with `hint` if it is the library's output-too-large error.
-pub fn with_hint(e: texsyn::Error, hint: &'static str) -> texsyn::Error {
+fn with_hint(e: texsyn::Error, hint: &'static str) -> texsyn::Error {
     match e {
         texsyn::Error::TooLarge {
             what: "output",

@@ -52,6 +52,35 @@ pub struct LoadReport {
     pub repair: RepairReport,
 }
 
+impl LoadReport {
+    /// A one-line account of `mesh` as loaded: `(V vertices, T triangles, P
+    /// primitive(s)` and what was skipped, dropped or computed, in parentheses.
+    pub fn summary(&self, mesh: &Mesh) -> String {
+        let mut s = format!(
+            "({} vertices, {} triangles, {} primitive(s)",
+            mesh.positions.len(),
+            mesh.triangles.len(),
+            self.primitives
+        );
+        if self.skipped_non_triangle > 0 {
+            s += &format!(
+                ", {} non-triangle primitive(s) skipped",
+                self.skipped_non_triangle
+            );
+        }
+        if self.repair.dropped_degenerate > 0 {
+            s += &format!(
+                ", {} degenerate triangles dropped",
+                self.repair.dropped_degenerate
+            );
+        }
+        if self.repair.computed_normals {
+            s += ", normals computed";
+        }
+        s + ")"
+    }
+}
+
 /// Textures to embed as a glTF PBR metallic-roughness material. Each is an RGBA8 image;
 /// images whose alpha is 255 everywhere are stored as RGB PNGs.
 #[derive(Clone, Debug)]

@@ -26,7 +26,7 @@ mod text;
 use glam::Vec3;
 
 pub use field::TangentField;
-pub use text::{parse_constraints, read_constraints};
+pub use text::{parse_constraints, read_constraints, DirectionSpec};
 
 /// Relaxation iterations of `symmetric:N` when the CLI string does not give them.
 pub const DEFAULT_SYMMETRIC_ITERATIONS: u32 = 200;

@@ -2,7 +2,7 @@
 //! [`DirectionSource`] and [`ScaleSource`], and reading direction-constraint files.
 
 use std::fmt;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::str::FromStr;
 
 use glam::Vec3;
@@ -93,6 +93,40 @@ pub fn read_constraints(path: &Path) -> Result<Vec<(Vec3, Vec3)>> {
         ),
     })?;
     parse_constraints(&text, &path.display().to_string())
+}
+
+/// A direction as written (the syntax of [`DIRECTION_HELP`](super::DIRECTION_HELP))
+/// with a `constraints:FILE` not read yet: parsing checks the text, [`Self::load`] reads
+/// the file (so that a command line is parsed before any input is opened).
+#[derive(Clone, Debug)]
+pub enum DirectionSpec {
+    /// A direction that needs no file.
+    Parsed(DirectionSource),
+    /// `constraints:FILE`: the constraint file to read.
+    ConstraintsFile(PathBuf),
+}
+
+impl DirectionSpec {
+    /// The direction, with the constraint file read ([`read_constraints`]).
+    pub fn load(&self) -> Result<DirectionSource> {
+        match self {
+            DirectionSpec::Parsed(d) => Ok(d.clone()),
+            DirectionSpec::ConstraintsFile(path) => {
+                read_constraints(path).map(DirectionSource::Constraints)
+            }
+        }
+    }
+}
+
+impl FromStr for DirectionSpec {
+    type Err = Error;
+
+    fn from_str(s: &str) -> Result<Self> {
+        match s.strip_prefix("constraints:").map(str::trim) {
+            Some(path) if !path.is_empty() => Ok(DirectionSpec::ConstraintsFile(path.into())),
+            _ => s.parse().map(DirectionSpec::Parsed),
+        }
+    }
 }
 
 impl FromStr for DirectionSource {
