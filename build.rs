@@ -342,12 +342,13 @@ fn build_shaders(
     let _ = match kind {
         Kind::Compute => writeln!(
             code,
-            "/// Every pass shader, sorted by file name.\npub const ALL: &[ShaderSource] = &[{}];",
+            "/// Every pass shader, sorted by file name (for tests and tools).\n#[allow(dead_code)]\npub const ALL: &[ShaderSource] = &[{}];",
             all.join(", ")
         ),
         Kind::Render => writeln!(
             code,
-            "/// Every render shader, sorted by file name.\n\
+            "/// Every render shader, sorted by file name (for tests and tools).\n\
+             #[allow(dead_code)]\n\
              pub const ALL: &[RenderShaderSource] = &[{}];",
             all.join(", ")
         ),

@@ -17,10 +17,10 @@ use std::sync::Arc;
 
 use texsyn::analysis::{analyze, AnalysisOptions};
 use texsyn::flow::Flow;
-use texsyn::gpu::advect::{AdvectOptions, Advection};
-use texsyn::gpu::synth::GpuSynthesizer;
-use texsyn::gpu::GpuContext;
+use texsyn::GpuContext;
+use texsyn::GpuSynthesizer;
 use texsyn::SynthParams;
+use texsyn::{AdvectOptions, Advection};
 
 fn main() -> texsyn::Result<()> {
     let dir = std::path::PathBuf::from(std::env::args().nth(1).unwrap_or_else(|| ".".into()));

@@ -6,7 +6,7 @@
 //! cargo run --release --example embed
 //! ```
 
-use texsyn::gpu::GpuContext;
+use texsyn::GpuContext;
 use texsyn::{Session, SynthParams};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {

@@ -25,9 +25,9 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use texsyn::field::Field;
 use texsyn::flow::Flow;
-use texsyn::gpu::advect::{AdvectOptions, Advection};
-use texsyn::gpu::synth::GpuSynthesizer;
-use texsyn::gpu::GpuContext;
+use texsyn::GpuContext;
+use texsyn::GpuSynthesizer;
+use texsyn::{AdvectOptions, Advection};
 use texsyn::{Session, SynthParams};
 
 /// The bundled exemplar and mesh, relative to the repository.

@@ -158,16 +158,26 @@ pub fn transformed_exemplar(
 
 /// Quantized level data computed from the float transformed exemplar.
 pub struct QuantizedLevel {
+    /// `Et_l` quantized with one scale per level to `[-ET_QMAX, ET_QMAX]`, row-major.
     pub et: Vec<[i16; DIM]>,
+    /// Runtime projection `P_l`: unit rows scaled by [`PROJ_QMAX`] and rounded; row `r`,
+    /// column `j * DIM + c` weighs component `c` of diagonal neighbour `j` (`DIAGONALS`
+    /// order). Rows past the PCA's components are zero.
     pub proj: [[i16; 4 * DIM]; DIM],
+    /// `(3 * P_l * N_E(u)) >> shift` per pixel, row-major: the exemplar side of the
+    /// correction distance, each value within `[-QE_MAX, QE_MAX]`.
     pub qe: Vec<[i16; DIM]>,
+    /// Smallest right shift that brings every exemplar-side product into [`QE_MAX`].
     pub shift: u32,
+    /// Fraction of the 32D runtime-neighbourhood variance not kept by `P_l`.
     pub runtime_residual: f64,
     /// Float features for similarity search: `Et(u)` and the projected runtime
     /// neighbourhood, 16 floats per pixel.
     pub features: Vec<f32>,
 }
 
+/// Floats per pixel in [`QuantizedLevel::features`]: `Et(u)` then the projected runtime
+/// neighbourhood.
 pub const FEATURE_DIM: usize = 2 * DIM;
 
 /// `x.round() as i16` (halves away from zero) without the libm call that `round`

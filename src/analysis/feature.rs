@@ -68,7 +68,9 @@ pub const FEATURE_CLAMP_RANGE: std::ops::RangeInclusive<f32> = 0.5..=4096.0;
 /// A binary feature mask of the exemplar's size.
 #[derive(Clone, Debug, PartialEq)]
 pub struct FeatureMask {
+    /// Width in pixels (must equal the exemplar's).
     pub width: u32,
+    /// Height in pixels (must equal the exemplar's).
     pub height: u32,
     /// Row-major, `true` = feature.
     pub inside: Vec<bool>,

@@ -56,14 +56,24 @@ const KD_CHECKS: usize = 16;
 /// Rows per band: bands are the unit of parallel work.
 const BAND_ROWS: usize = 8;
 
+/// What [`similarity_offsets`] searches: one level's per-pixel features and the rules a
+/// set member must follow.
 pub struct SimilarityQuery<'a> {
+    /// Row-major feature vectors, `dim` floats per pixel (`width * height * dim` in all);
+    /// members are ranked by squared Euclidean distance between them.
     pub features: &'a [f32],
+    /// Floats per pixel in `features`.
     pub dim: usize,
+    /// Exemplar width in pixels (at most `i16::MAX`, as offsets are stored in `i16`).
     pub width: u32,
+    /// Exemplar height in pixels (at most `i16::MAX`).
     pub height: u32,
+    /// Whether coordinates and the exclusion distance wrap around the exemplar borders.
     pub tileable: bool,
     /// Valid-region margin (non-tileable exemplars): members must lie inside it.
     pub margin: u32,
+    /// Members must differ from the query pixel by at least this many pixels along `x`
+    /// or `y` (Chebyshev distance, wrapped for tileable exemplars).
     pub exclusion_radius: u32,
     /// Set size including the pixel itself.
     pub k: u32,

@@ -218,6 +218,7 @@ impl KdTree {
         self.index.len()
     }
 
+    /// Whether the tree holds no points.
     pub fn is_empty(&self) -> bool {
         self.index.is_empty()
     }

@@ -39,7 +39,9 @@ pub const LARGE_EXEMPLAR_PIXELS: u64 = 256 * 256;
 /// channels the analysis runs on (1 for grey exemplars, 3 for colour; alpha is ignored).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Exemplar {
+    /// Width in pixels (at least [`MIN_EXEMPLAR_SIZE`]).
     pub width: u32,
+    /// Height in pixels (at least [`MIN_EXEMPLAR_SIZE`]).
     pub height: u32,
     /// 1 (grey) or 3 (RGB).
     pub channels: u32,
@@ -346,12 +348,14 @@ pub struct LevelData {
     /// coordinate and goes on upsampling) and a finest level analysed without its
     /// similarity sets ([`AnalysisOptions::finest_sets`]).
     pub et: Table<[i16; DIM]>,
-    /// Quantized runtime projection `P_l` (8 rows x 32 columns; column `4*0..` is the
-    /// block of diagonal `j` in `DIAGONALS` order: column = j*8 + c).
+    /// Quantized runtime projection `P_l` (8 rows x 32 columns; column `j * 8 + c` weighs
+    /// component `c` of diagonal neighbour `j`, in `DIAGONALS` order).
     pub proj: [[i16; 4 * DIM]; DIM],
     /// `3 * P_l * N_E(u)` computed in integers from `et` and `proj`, then arithmetically
     /// shifted right by `shift`: the exemplar side of the correction distance.
     pub qe: Table<[i16; DIM]>,
+    /// Right shift applied to `3 * P_l * N` (exemplar side in `qe`, synthesized side in
+    /// the correction pass) so that its largest exemplar value fits in [`QE_MAX`].
     pub shift: u32,
     /// k-coherence offsets `O_i(u) = C_i(u) - u` for i = 2..k: `(k-1)` pairs per pixel.
     pub offsets: Table<[i16; 2]>,
@@ -365,10 +369,16 @@ pub struct LevelData {
 /// [`Analysis::save`] and load it with [`Analysis::load`] to skip the analysis.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Analysis {
+    /// Exemplar width in pixels.
     pub width: u32,
+    /// Exemplar height in pixels.
     pub height: u32,
+    /// Colour channels of the exemplar the analysis ran on: 1 (grey) or 3 (RGB), not
+    /// counting a feature-mask channel.
     pub channels: u32,
+    /// Whether the exemplar was treated as tileable (borders wrap; no margins).
     pub tileable: bool,
+    /// Similarity-set size including the pixel itself, `1..=`[`MAX_K`].
     pub k: u32,
     /// RGBA8 exemplar colours (the finest stack level, i.e. the exemplar itself).
     pub colors: Vec<[u8; 4]>,
@@ -473,6 +483,8 @@ pub fn level_searched(width: u32, height: u32, spacing: u32) -> bool {
     4 * spacing < width.min(height)
 }
 
+/// Refuses an exemplar narrower or lower than [`MIN_EXEMPLAR_SIZE`] pixels with
+/// [`Error::ExemplarTooSmall`].
 pub fn check_exemplar_size(width: u32, height: u32) -> Result<()> {
     if width < MIN_EXEMPLAR_SIZE || height < MIN_EXEMPLAR_SIZE {
         return Err(Error::ExemplarTooSmall {
@@ -643,8 +655,9 @@ fn detect_tileable_checked(ex: &Exemplar) -> bool {
 /// Progress of a running analysis, for display.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Progress {
-    /// Levels done so far and in all.
+    /// Levels finished so far, `0..=total`.
     pub done: u32,
+    /// Levels in all (`L + 1`, level 0 included).
     pub total: u32,
     /// What is being computed now (for level `done`, counting from 0 = coarsest);
     /// [`Stage::LevelDone`] right after a level is finished.

@@ -7,7 +7,9 @@ use super::par_ranges;
 /// Principal components of a set of vectors.
 #[derive(Clone, Debug)]
 pub struct Pca {
+    /// Dimension of the input vectors (length of `mean` and of each component).
     pub dim: usize,
+    /// Mean of the fitted samples, subtracted before projecting onto the components.
     pub mean: Vec<f64>,
     /// Components as rows (unit vectors), by decreasing variance.
     pub components: Vec<Vec<f64>>,

@@ -8,13 +8,19 @@ use super::par_ranges;
 /// A float image with `channels` values per pixel, row-major.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Plane {
+    /// Width in pixels.
     pub width: u32,
+    /// Height in pixels.
     pub height: u32,
+    /// Floats per pixel.
     pub channels: u32,
+    /// Row-major pixel values, `width * height * channels` floats.
     pub data: Vec<f32>,
 }
 
 impl Plane {
+    /// The `channels` values of pixel `(x, y)`, the coordinates wrapped into the plane
+    /// (`tileable`) or clamped to its border.
     #[inline]
     pub fn at(&self, x: i32, y: i32, tileable: bool) -> &[f32] {
         let (w, h) = (self.width as i32, self.height as i32);

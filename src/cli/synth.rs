@@ -130,7 +130,7 @@ pub struct SynthArgs {
     /// default schedule, no probe). Isometric synthesis only (ignored with --field or
     /// --randomness). Windows away from the origin are not measured; use 0 for a copy
     /// bounded at any size and place
-    #[arg(long, value_name = "F", default_value_t = texsyn::gpu::copy_guard::DEFAULT_COPY_BUDGET,
+    #[arg(long, value_name = "F", default_value_t = texsyn::DEFAULT_COPY_BUDGET,
           allow_hyphen_values = true, value_parser = parse_copy_budget,
           help_heading = ADVANCED, hide_short_help = true)]
     pub copy_budget: f32,

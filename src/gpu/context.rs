@@ -37,7 +37,7 @@ pub struct GpuOptions {
     /// adapters without compute shaders are skipped.
     pub adapter: Option<String>,
     /// On a CPU adapter (lavapipe) on Linux, bind the driver's worker threads to
-    /// separate cores (see [`super::cpu_threads`]: without it the scheduler can run them
+    /// separate cores (see `super::cpu_threads`: without it the scheduler can run them
     /// all on one core, nearly doubling the synthesis time on 2 cores). `None`: yes.
     /// GPUs and other systems are never affected.
     pub pin_cpu_threads: Option<bool>,

@@ -132,15 +132,15 @@ impl ScheduleChoice {
 
 impl GpuSynthesizer {
     /// Chooses the jitter schedule for `params` with the copy guard (module docs): the
-    /// first of [`GUARD_TIERS`] whose probe synthesis copies at most `budget` of the
+    /// first of `GUARD_TIERS` whose probe synthesis copies at most `budget` of the
     /// exemplar verbatim becomes `extra_still_levels`, else it stays 0. Nothing is probed
     /// (the parameters come back as they are) when `budget` is 0, for exemplars under
-    /// [`GUARD_MIN_SIDE`], when `params` gives its own `randomness` or
+    /// `GUARD_MIN_SIDE`, when `params` gives its own `randomness` or
     /// `extra_still_levels`, for anisometric and atlas synthesis (whose patches the
-    /// field shapes; not measured), for outputs over [`MAX_PROBE_SIZE`] a side
+    /// field shapes; not measured), for outputs over `MAX_PROBE_SIZE` a side
     /// ([`Self::probed_size`]), and where the probe does not fit the device in one
     /// piece ([`GpuSynthesizer::fits`]). Costs one synthesis of the probe window per tier
-    /// tried (less for a probe given up early, see [`EARLY_CHECKS`]), plus the result's
+    /// tried (less for a probe given up early, see `EARLY_CHECKS`), plus the result's
     /// own when it is another window or every probe failed.
     pub fn choose_schedule(&self, params: &SynthParams, budget: f32) -> Result<ScheduleChoice> {
         if !budget.is_finite() || !(0.0..=1.0).contains(&budget) {
@@ -206,7 +206,7 @@ impl GpuSynthesizer {
     }
 
     /// Whether the guard probes outputs of this size: a side of at most
-    /// [`MAX_PROBE_SIZE`], or a periodic output (its own probe).
+    /// `MAX_PROBE_SIZE`, or a periodic output (its own probe).
     pub fn probed_size(params: &SynthParams) -> bool {
         params.tileable_output || params.width.max(params.height) <= MAX_PROBE_SIZE
     }
@@ -227,7 +227,7 @@ impl GpuSynthesizer {
     }
 
     /// The probe window for `params`: at the origin, of the output's size but at least
-    /// [`COPY_PROBE_SIZE`] a side, or the output itself when it is periodic.
+    /// `COPY_PROBE_SIZE` a side, or the output itself when it is periodic.
     pub fn probe_params(params: &SynthParams) -> SynthParams {
         if params.tileable_output {
             return params.clone();

@@ -30,13 +30,23 @@ pub enum BenchmarkProgress {
     /// The analysis, when it runs once (a large exemplar).
     Analysis(Progress),
     /// Analysis run `run` (from 1) of `runs` starts (a small exemplar, timed repeatedly).
-    AnalysisRun { run: usize, runs: usize },
+    AnalysisRun {
+        /// The run starting, from 1.
+        run: usize,
+        /// Analysis runs in all.
+        runs: usize,
+    },
     /// The analysis is over.
     AnalysisDone,
     /// The size `[width, height]` is being timed.
     Size([u32; 2]),
     /// Per-pass run `run` (from 1) of `runs` starts.
-    PassRun { run: u32, runs: u32 },
+    PassRun {
+        /// The run starting, from 1.
+        run: u32,
+        /// Per-pass runs in all at this size.
+        runs: u32,
+    },
     /// The current size, or its per-pass runs, are over.
     SizeDone,
 }

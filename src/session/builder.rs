@@ -294,7 +294,7 @@ impl SessionBuilder {
 
     /// The copy guard's budget, 0..=1 (default [`DEFAULT_COPY_BUDGET`], 0 = no guard,
     /// the default schedule always): the largest verbatim copy, as a fraction of the
-    /// exemplar, that a stiller schedule may make (see [`crate::gpu::copy_guard`]).
+    /// exemplar, that a stiller schedule may make (the copy guard, in the GPU layer).
     /// It is measured on the window at the origin of the output's size (at least
     /// 512x512) and holds there: windows elsewhere can copy more
     /// ([`GpuSynthesizer::output_within_probe`](crate::GpuSynthesizer::output_within_probe));

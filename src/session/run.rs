@@ -44,7 +44,7 @@ pub enum SynthesisTiming {
     Probe,
 }
 
-/// What the copy guard did for a run ([`crate::gpu::copy_guard`]).
+/// What the copy guard did for a run: the schedule it chose and the copy it measured.
 #[derive(Clone, Debug)]
 pub struct CopyGuardReport {
     /// Its choice and the probes' figures, in words.

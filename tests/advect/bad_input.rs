@@ -1,6 +1,7 @@
 //! Bad velocities, time steps, parameters and options are errors with what to change.
 
-use texsyn::gpu::advect::{quantize_velocity, AdvectOptions};
+use texsyn::gpu::advect::AdvectOptions;
+use texsyn::passes::velocity::quantize_velocity;
 use texsyn::SynthParams;
 
 use crate::common::ctx;

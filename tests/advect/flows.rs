@@ -2,8 +2,9 @@
 //! vortices keep the texture and its sharpness; the Lamb-Oseen vortex's profile.
 
 use texsyn::flow::Flow;
-use texsyn::gpu::advect::{quantize_velocity, AdvectOptions};
+use texsyn::gpu::advect::AdvectOptions;
 use texsyn::passes::run_cpu_frame;
+use texsyn::passes::velocity::quantize_velocity;
 use texsyn::quality::texture_energy;
 use texsyn::SynthParams;
 

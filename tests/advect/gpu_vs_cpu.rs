@@ -6,8 +6,9 @@ use std::sync::Arc;
 
 use texsyn::analysis::AnalysisOptions;
 use texsyn::flow::Flow;
-use texsyn::gpu::advect::{quantize_velocity, AdvectOptions};
+use texsyn::gpu::advect::AdvectOptions;
 use texsyn::gpu::{synth::GpuSynthesizer, GpuContext};
+use texsyn::passes::velocity::quantize_velocity;
 use texsyn::SynthParams;
 
 use crate::common::{self, ctx};

@@ -6,11 +6,12 @@ use std::sync::Arc;
 
 use texsyn::analysis::{analyze, Analysis, AnalysisOptions, Exemplar};
 use texsyn::flow::Flow;
-use texsyn::gpu::advect::{quantize_velocity, AdvectOptions, Advection};
+use texsyn::gpu::advect::{AdvectOptions, Advection};
 use texsyn::gpu::synth::GpuSynthesizer;
 use texsyn::gpu::GpuContext;
 use texsyn::passes::plan::SynthPlan;
 use texsyn::passes::run_cpu_frame;
+use texsyn::passes::velocity::quantize_velocity;
 use texsyn::{SynthParams, Synthesis};
 
 use crate::common::{self, ctx};

@@ -25,7 +25,6 @@ pub use crate::passes::advect::AdvectOptions;
 use crate::passes::plan::{Dispatch, PassKind, SynthPlan};
 use crate::passes::SynthParams;
 use velocity::quantize_pipeline;
-pub use velocity::quantize_velocity;
 
 /// The advected texture of one window (or atlas) and its state on the GPU.
 pub struct Advection {

@@ -21,7 +21,7 @@ mod windows;
 pub use limits::check_exemplar_fits;
 pub use magnify::MagnifiedSynthesis;
 pub use maps::ExtraMap;
-pub use output::{srgb_view, GpuSynthesis, OUTPUT_FORMAT, OUTPUT_FORMAT_SRGB};
+pub use output::{GpuSynthesis, OUTPUT_FORMAT, OUTPUT_FORMAT_SRGB};
 pub use synthesizer::{GpuSynthesizer, LevelProgress};
 pub use windows::MAX_WINDOWED_PIXELS;
 

@@ -91,7 +91,7 @@ impl SynthParams {
 
     /// Whether the desired Jacobian is the same everywhere: no atlas, and no field or a
     /// constant one. Advection keeps a texture's look under turning flows only there
-    /// ([`AdvectOptions::recommended`]).
+    /// ([`AdvectOptions::recommended`](crate::passes::advect::AdvectOptions::recommended)).
     pub fn constant_jacobian(&self) -> bool {
         self.surface.is_none() && matches!(self.field, None | Some(Field::Constant { .. }))
     }

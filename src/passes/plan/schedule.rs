@@ -35,7 +35,7 @@ pub enum PassKind {
     /// Advection frames with fading: the finest level's colours, pixels whose
     /// coordinate jumped fading in over a few frames (`fade.wgsl`); in place of the gather.
     Fade,
-    /// A tileable output made on a torus ([`Torus`]): the finest level's coordinates
+    /// A tileable output made on a torus ([`Torus`](super::Torus)): the finest level's coordinates
     /// resampled onto the output's grid.
     Resample,
 }

@@ -501,7 +501,7 @@ impl<'a> AdvectSessionBuilder<'a> {
         };
         if let Some(request) = self.mesh {
             let mut mesh = match request {
-                MeshRequest::Path(p) => crate::surface::gltf_io::load_mesh(&p)?.0,
+                MeshRequest::Path(p) => load_mesh_file(&p)?,
                 MeshRequest::Given(m) => m,
             };
             mesh.validate_and_repair()?;
@@ -621,6 +621,22 @@ fn check_output_size(ctx: &GpuContext, width: u32, height: u32, hint: &'static s
         )));
     }
     Ok(())
+}
+
+/// Reads a glTF mesh file (the `gltf` feature).
+#[cfg(feature = "gltf")]
+fn load_mesh_file(path: &Path) -> Result<Mesh> {
+    Ok(crate::surface::gltf_io::load_mesh(path)?.0)
+}
+
+/// Without the `gltf` feature there is no mesh reader: a mesh must be given in memory.
+#[cfg(not(feature = "gltf"))]
+fn load_mesh_file(path: &Path) -> Result<Mesh> {
+    Err(Error::InvalidParameter(format!(
+        "{}: reading meshes needs texsyn's `gltf` feature; pass the mesh in memory \
+         (AdvectSessionBuilder::mesh) instead",
+        path.display()
+    )))
 }
 
 #[cfg(test)]
