@@ -61,7 +61,7 @@ fn main() -> texsyn::Result<()> {
     // The options recommended for these parameters: in 2D without a field, the texture
     // keeps its look under the turning flow (remade as it turns, renewals faded over two
     // frames); on an atlas or along a varying field it would be carried as the paper
-    // does (README, *Advection*).
+    // does (docs/advection.md).
     let options = AdvectOptions::recommended(&params);
     let mut advection = Advection::new(synthesizer, &params, options)?;
 

@@ -191,7 +191,7 @@ fn repair_drops_degenerates_computes_normals_and_rejects_bad_input() {
         assert!((*n - Vec3::Y).length() < 1e-6, "computed normal {n}");
     }
 
-    // Degeneracy is judged per triangle: a unit square far from a square a million times
+    // Degeneracy is decided per triangle: a unit square far from a square a million times
     // larger keeps its triangles (the old mesh-relative threshold dropped them).
     let mut far = Mesh::plane(1.0, 1.0, 1);
     let big = Mesh::plane(1e6, 1e6, 1);

@@ -224,7 +224,7 @@ impl AdvectSummary {
                     "  --keep-look remakes the fine detail wherever the desired Jacobian changes \
                      along the flow, which on a mesh's atlas or along a varying --field is almost \
                      everywhere: without it (--carry, the default there) the texture is carried \
-                     and pops far less (README, Advection)"
+                     and pops far less (docs/advection.md)"
                         .into(),
                 );
             }
@@ -249,7 +249,7 @@ impl AdvectSummary {
         if let Some(r) = rise.filter(|&r| r > 1.2 && !self.keep_look) {
             lines.push(format!(
                 "  the texture energy rose {r:.2}x: the flow breaks the texture up as it turns or \
-                 stretches it; {} (README, Advection)",
+                 stretches it; {} (docs/advection.md)",
                 if self.constant_jacobian {
                     "--keep-look (the default here, unless --carry, --advect-finest, \
                      --resynthesize or --levels below 3 is given) remakes it as it moves and \
