@@ -11,11 +11,11 @@
 use std::path::PathBuf;
 
 use texsyn::analysis::{analyze, AnalysisOptions};
-use texsyn::session::SurfaceSession;
 use texsyn::surface::render::RenderOptions;
 use texsyn::surface::tangent_field::DirectionSource;
 use texsyn::surface::Mesh;
 use texsyn::GpuContext;
+use texsyn::SurfaceSession;
 
 fn main() -> texsyn::Result<()> {
     let dir = PathBuf::from(std::env::args().nth(1).unwrap_or_else(|| ".".into()));

@@ -65,7 +65,7 @@ internal_module!(gpu);
 pub mod image_io;
 pub mod passes;
 pub mod quality;
-pub mod session;
+mod session;
 mod shader_preprocess;
 pub mod surface;
 
@@ -83,9 +83,5 @@ pub use gpu::synth::{
 pub use gpu::GpuContext;
 pub use passes::advect::AdvectOptions;
 pub use passes::{DistanceMode, SynthParams, Synthesis};
-pub use session::{
-    AdvectFrame, AdvectScheme, AdvectSession, AdvectSessionBuilder, Benchmark, BenchmarkTable,
-    Evaluation, EvaluationReport, ExemplarSource, MaterialMap, Session, SessionBuilder, Texture,
-};
-#[cfg(feature = "gltf")]
-pub use session::{SurfaceBuilder, SurfaceSession, TexturedSurface};
+// The builders and what they return (src/session/), all at the root.
+pub use session::*;

@@ -5,8 +5,8 @@ use std::path::{Path, PathBuf};
 
 use clap::Args;
 use texsyn::flow::{Flow, FLOW_HELP};
-use texsyn::session::{AdvectScheme, AdvectSession, DEFAULT_ATLAS_SIZE};
 use texsyn::AdvectOptions;
+use texsyn::{AdvectScheme, AdvectSession, DEFAULT_ATLAS_SIZE};
 
 use super::bench::print_pass_table;
 use super::field::FieldSpec;

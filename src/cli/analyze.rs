@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use texsyn::session::Event;
+use texsyn::Event;
 
 use clap::Args;
 
@@ -72,12 +72,11 @@ pub fn run(ui: &Ui, args: AnalyzeArgs) -> CliResult<()> {
     args.appearance.apply(&mut options)?;
 
     let mut analysis_progress = ui.analysis_progress();
-    let analyzed =
-        texsyn::session::analyze_image(&args.exemplar, &options, &mut |event| match event {
-            Event::Warning(line) => ui.info(line),
-            Event::Analysis(p) => analysis_progress(p),
-            _ => {}
-        })?;
+    let analyzed = texsyn::analyze_image(&args.exemplar, &options, &mut |event| match event {
+        Event::Warning(line) => ui.info(line),
+        Event::Analysis(p) => analysis_progress(p),
+        _ => {}
+    })?;
     let (analysis, load_time, analysis_time) =
         (analyzed.analysis, analyzed.load, analyzed.analysis_time);
 

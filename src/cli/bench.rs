@@ -6,7 +6,7 @@ use std::time::{Duration, Instant};
 use clap::Args;
 
 use texsyn::passes::SynthParams;
-use texsyn::session::{
+use texsyn::{
     AnalysisTiming, Benchmark, BenchmarkProgress, BenchmarkTable, ExemplarSource, PassTable,
 };
 

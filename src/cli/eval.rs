@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 
 use clap::Args;
 
-use texsyn::session::{Evaluation, EvaluationNote};
+use texsyn::{Evaluation, EvaluationNote};
 
 use super::{CliResult, TileArgs, Ui};
 

@@ -4,12 +4,12 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use clap::Args;
-use texsyn::session::{SurfaceEvent, SurfaceMap, SurfaceSession};
 use texsyn::surface::atlas::AtlasSource;
 use texsyn::surface::gltf_io;
 use texsyn::surface::render::RenderOptions;
 use texsyn::surface::tangent_field::{DirectionSpec, ScaleSource, DIRECTION_HELP};
 use texsyn::SynthParams;
+use texsyn::{SurfaceEvent, SurfaceMap, SurfaceSession};
 
 use super::synth::{read_source, Source};
 use super::{

@@ -7,7 +7,7 @@ use clap::Args;
 
 use texsyn::analysis::{AnalysisOptions, MAX_K};
 use texsyn::passes::SynthParams;
-use texsyn::session::{Event, Session};
+use texsyn::{Event, Session};
 
 mod also;
 use also::parse_also;

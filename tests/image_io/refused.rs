@@ -69,7 +69,7 @@ fn truncated_jpegs_devices_and_analysis_files_are_refused() {
         assert!(e.to_string().contains("not a regular file"), "{e}");
         let e = texsyn::Analysis::load(&fifo).unwrap_err();
         assert!(e.to_string().contains("not a regular file"), "{e}");
-        assert!(texsyn::session::is_analysis_file(&fifo).is_err());
+        assert!(texsyn::is_analysis_file(&fifo).is_err());
     } else {
         eprintln!("no mkfifo here: the named-pipe case is not tested");
     }

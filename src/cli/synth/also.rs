@@ -17,8 +17,8 @@ pub struct AlsoMap {
 
 impl AlsoMap {
     /// The map as the library takes it.
-    pub fn material_map(&self) -> texsyn::session::MaterialMap {
-        texsyn::session::MaterialMap {
+    pub fn material_map(&self) -> texsyn::MaterialMap {
+        texsyn::MaterialMap {
             path: self.input.clone(),
             normal: self.normal,
             green_down: self.green_down,

@@ -8,7 +8,7 @@ use crate::cli::{CliResult, Ui};
 /// Hint of the "output too large" errors.
 pub const WINDOW_HINT: &str = "synthesize it in windows (--window X,Y) and assemble them";
 
-pub use texsyn::session::ExemplarSource as Source;
+pub use texsyn::ExemplarSource as Source;
 
 /// Reads EXEMPLAR (an analysis file or an image, told apart by content) without
 /// analysing it yet; `--k` / `--tileable` must agree with an analysis file.
@@ -69,12 +69,12 @@ fn with_hint(e: texsyn::Error, hint: &'static str) -> texsyn::Error {
 /// Rejects an output extension the library cannot write, before any work (the library
 /// checks again when saving).
 pub fn check_save_extension(path: &Path) -> CliResult<()> {
-    Ok(texsyn::session::check_image_path(path)?)
+    Ok(texsyn::check_image_path(path)?)
 }
 
 /// An output of `width` x `height` must fit its format: checked before any work.
 pub fn check_save_size(path: &Path, width: u64, height: u64) -> CliResult<()> {
-    Ok(texsyn::session::check_image_size(path, width, height)?)
+    Ok(texsyn::check_image_size(path, width, height)?)
 }
 
 /// `--copy-budget F`: a fraction of the exemplar's area, 0..=1.

@@ -1,7 +1,7 @@
 //! `synth`'s summary on stderr: the outputs, the copy guard's choice and the time of
 //! each step.
 
-use texsyn::session::{Session, SynthesisTiming, Texture};
+use texsyn::{Session, SynthesisTiming, Texture};
 
 use super::SynthArgs;
 use crate::cli::{fmt_duration, Ui};
