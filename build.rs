@@ -646,13 +646,13 @@ const SHARED_STRUCTS: &[SharedStruct] = &[
     },
     // The mesh renderer's uniform blocks.
     SharedStruct {
-        rust_file: "src/surface/render.rs",
+        rust_file: "src/surface/render/inputs.rs",
         rust: "Params",
         wgsl_file: "render/mesh.wgsl",
         wgsl: "Params",
     },
     SharedStruct {
-        rust_file: "src/surface/render.rs",
+        rust_file: "src/surface/render/inputs.rs",
         rust: "ViewUniform",
         wgsl_file: "render/mesh.wgsl",
         wgsl: "View",
