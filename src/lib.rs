@@ -63,6 +63,7 @@ pub mod field;
 pub mod flow;
 internal_module!(gpu);
 pub mod image_io;
+mod options;
 pub mod passes;
 pub mod quality;
 mod session;
@@ -81,7 +82,7 @@ pub use gpu::synth::{
     OUTPUT_FORMAT_SRGB,
 };
 pub use gpu::GpuContext;
-pub use passes::advect::AdvectOptions;
-pub use passes::{DistanceMode, SynthParams, Synthesis};
+pub use options::{AdvectOptions, DistanceMode, SynthParams};
+pub use passes::Synthesis;
 // The builders and what they return (src/session/), all at the root.
 pub use session::*;

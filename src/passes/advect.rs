@@ -7,14 +7,12 @@
 //! ([`crate::passes::distortion`]) then renews the pixels the flow distorted, and the
 //! usual correction passes run. The frames' options are [`AdvectOptions`].
 
-mod options;
-
 use super::common::{fit_coord, wrap, PassParams};
 pub use super::distortion::{distortion, distortion_max, flagged, seam_err};
 use super::drift::centre_velocity;
 pub use super::drift::drift;
 pub use super::velocity::{MAX_SPEED, VELOCITY_FRAC};
-pub use options::{
+pub use crate::options::{
     AdvectOptions, KEEP_LOOK_FADE, KEEP_LOOK_REMAKE_THRESHOLD, MAX_ANCHOR_SPACING, MAX_FADE_FRAMES,
 };
 

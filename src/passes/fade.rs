@@ -34,12 +34,7 @@ use super::gather_aniso::color_at;
 /// largest column (at least 1), on either axis.
 pub const FADE_JUMP: i32 = 384;
 
-/// The default pop test ([`crate::passes::advect::AdvectOptions::fade_change`],
-/// `PassParams::fade_change`): a pixel that jumped fades where the jumps around it
-/// ([`popped`]) changed the colour by more than this on average (of 255;
-/// `(|dR| + 2 |dG| + |dB|) / 4`). Most jumps are not pops: seams that moved, patches
-/// remade alike.
-pub const FADE_CHANGE: u32 = 45;
+pub use crate::options::FADE_CHANGE;
 
 /// Entries of fade state per pixel of the finest level's region.
 pub const STATE_ENTRIES: u32 = 3;

@@ -11,14 +11,13 @@
 mod advect_schedule;
 mod defaults;
 mod layout;
-mod params;
 mod regions;
 mod schedule;
 
+pub use crate::options::{DistanceMode, SynthParams, STANDALONE_MARGIN, STANDALONE_MIN_REGION};
 pub use defaults::{
     default_randomness, default_second_finest_passes, passes_at, ExemplarShape,
     LARGE_SECOND_FINEST_PASSES, SMALL_SECOND_FINEST_PASSES, UNSEARCHED_PASSES,
 };
-pub use params::{DistanceMode, SynthParams, STANDALONE_MARGIN, STANDALONE_MIN_REGION};
 pub use regions::{torus_period, LevelPlan, SynthPlan, Torus, TORUS_MIN_SIDE};
 pub use schedule::{quarter_tables_level, Dispatch, PassKind, SUBPASS_ORDER};

@@ -2,8 +2,8 @@
 
 use std::sync::Arc;
 
+use super::AtlasDomain;
 use crate::field::Field;
-use crate::passes::fill::AtlasDomain;
 
 /// User-facing synthesis parameters.
 #[derive(Clone, Debug, PartialEq)]
@@ -18,7 +18,7 @@ pub struct SynthParams {
     pub seed: u32,
     /// Per-level jitter randomness `r_l` (fraction of `h_l`), index = level. Missing
     /// levels use the last value; an empty list uses
-    /// [`default_randomness`](super::default_randomness).
+    /// [`default_randomness`](crate::passes::plan::default_randomness).
     pub randomness: Vec<f32>,
     /// Levels added to the default schedule's still (unjittered) finest ones, 0..=4;
     /// ignored when `randomness` is given. Larger patches, lower texture energy, larger
@@ -27,11 +27,11 @@ pub struct SynthParams {
     pub extra_still_levels: u32,
     /// Correction passes (each = 4 subpasses) at every level but the finest (the
     /// second-finest level may get fewer, [`Self::second_finest_passes`]; levels without
-    /// similarity sets of their own at most [`UNSEARCHED_PASSES`](super::UNSEARCHED_PASSES)).
+    /// similarity sets of their own at most [`UNSEARCHED_PASSES`](crate::passes::plan::UNSEARCHED_PASSES)).
     pub passes: u32,
     /// Correction passes at the second-finest level, the costliest corrected one (a
     /// quarter of the output's pixels). `None` (default):
-    /// [`default_second_finest_passes`](super::default_second_finest_passes).
+    /// [`default_second_finest_passes`](crate::passes::plan::default_second_finest_passes).
     pub second_finest_passes: Option<u32>,
     /// Correction passes at the finest level (3/4 of all pixels). Default 0: the finest
     /// level is the coherent upsampling of the next coarser one, which is cheaper and
@@ -52,7 +52,7 @@ pub struct SynthParams {
     /// Synthesize one period of a seamlessly tiling texture (`width` x `height`): every
     /// level is a torus, neighbours wrap around, and the window origin must be 0. Sides
     /// that are not multiples of 4 are made on a torus whose sides are
-    /// ([`Torus`](super::Torus)).
+    /// ([`Torus`](crate::passes::plan::Torus)).
     pub tileable_output: bool,
     /// Atlas synthesis (surface texture, Lefebvre & Hoppe 2006 §6): the output is the
     /// whole atlas, the Jacobians come from the domain, texels outside charts are not

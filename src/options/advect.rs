@@ -2,6 +2,13 @@
 
 use crate::error::{Error, Result};
 
+/// The default pop test ([`crate::passes::advect::AdvectOptions::fade_change`],
+/// `PassParams::fade_change`): a pixel that jumped fades where the jumps around it
+/// ([`crate::passes::fade::popped`]) changed the colour by more than this on average (of 255;
+/// `(|dR| + 2 |dG| + |dB|) / 4`). Most jumps are not pops: seams that moved, patches
+/// remade alike.
+pub const FADE_CHANGE: u32 = 45;
+
 /// How an advection frame treats the pyramid (Lefebvre & Hoppe 2006 §7 and extensions).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct AdvectOptions {
@@ -88,7 +95,7 @@ pub struct AdvectOptions {
     /// The fade's pop test (with [`Self::fade`]): a pixel that jumped fades where the mean
     /// colour change over its 3x3 neighbourhood (pixels that did not jump count 0)
     /// exceeds this, of 255 (`(|dR| + 2 |dG| + |dB|) / 4`). Lower fades more pops for a
-    /// higher texture energy. Default [`crate::passes::fade::FADE_CHANGE`].
+    /// higher texture energy. Default [`FADE_CHANGE`].
     pub fade_change: u32,
     /// Anchored renewals on the coarsest advected level (0: off, the paper's scheme; at
     /// most [`MAX_ANCHOR_SPACING`]): a flagged pixel continues, along the desired
@@ -313,7 +320,7 @@ impl Default for AdvectOptions {
             resynthesize: 0,
             keep_look: false,
             fade: 0,
-            fade_change: crate::passes::fade::FADE_CHANGE,
+            fade_change: FADE_CHANGE,
             anchor_spacing: 0,
             anchor_upsample: 0.5,
         }
