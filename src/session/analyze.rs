@@ -24,7 +24,7 @@ pub struct AnalyzedImage {
 /// must not be blank (an empty or inverted export).
 ///
 /// ```no_run
-/// use texsyn::session::analyze_image;
+/// use texsyn::analyze_image;
 /// let a = analyze_image("assets/gravel.png".as_ref(), &Default::default(), &mut |_| {})?;
 /// a.analysis.save("gravel.texsyn".as_ref())?;
 /// # Ok::<(), texsyn::Error>(())

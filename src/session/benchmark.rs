@@ -146,7 +146,7 @@ impl PassTable {
     ///     vec![(PassKind::Correct, 0, ms(4))],
     ///     vec![(PassKind::Correct, 0, ms(2))],
     /// ];
-    /// let table = texsyn::session::PassTable::from_runs(&runs);
+    /// let table = texsyn::PassTable::from_runs(&runs);
     /// assert_eq!(table.total, ms(3)); // the median of 3, 4 and 2 ms
     /// ```
     pub fn from_runs(runs: &[Vec<(PassKind, usize, Duration)>]) -> PassTable {
@@ -227,7 +227,7 @@ pub struct BenchmarkTable {
 /// Times the analysis and the GPU synthesis at several output sizes.
 ///
 /// ```no_run
-/// use texsyn::session::{Benchmark, ExemplarSource};
+/// use texsyn::{Benchmark, ExemplarSource};
 /// let source = ExemplarSource::open("assets/gravel.png".as_ref())?;
 /// let table = Benchmark::new(source).sizes(&[[256, 256], [512, 512]]).runs(5).run()?;
 /// for row in &table.rows {

@@ -33,7 +33,7 @@ impl SessionBuilder {
     /// (see [`Event`]).
     ///
     /// ```no_run
-    /// use texsyn::session::{Event, Session};
+    /// use texsyn::{Event, Session};
     /// let session = Session::builder()
     ///     .exemplar_path("assets/gravel.png")
     ///     .build_reporting(&mut |event| match event {

@@ -31,7 +31,7 @@ pub type LevelCallback = Box<dyn FnMut(u32, u32, Duration) + Send>;
 /// material maps, coordinates), then [`Self::build`].
 ///
 /// ```no_run
-/// use texsyn::session::{MaterialMap, Session};
+/// use texsyn::{MaterialMap, Session};
 /// let session = Session::builder()
 ///     .exemplar_path("assets/bricks.png")
 ///     .feature_mask_path("assets/bricks_mask.png")

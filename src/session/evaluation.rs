@@ -41,7 +41,7 @@ pub enum EvaluationNote {
 /// [`Evaluation::frames`]) of a folder of advected frames.
 ///
 /// ```no_run
-/// use texsyn::session::Evaluation;
+/// use texsyn::Evaluation;
 /// let report = Evaluation::open("assets/gravel.png".as_ref())?
 ///     .image_path("out.png")
 ///     .coords_path("out.exr")

@@ -59,7 +59,7 @@ impl Session {
     /// ([`Event::Windows`]).
     ///
     /// ```no_run
-    /// use texsyn::session::{Event, Session};
+    /// use texsyn::{Event, Session};
     /// let session = Session::builder()
     ///     .exemplar_path("assets/gravel.png")
     ///     .size(16384, 8192)

@@ -11,7 +11,7 @@ use crate::gpu::GpuContext;
 /// What an exemplar path holds: a finished analysis, or an image still to analyse.
 ///
 /// ```no_run
-/// use texsyn::session::ExemplarSource;
+/// use texsyn::ExemplarSource;
 /// match ExemplarSource::open("assets/gravel.png".as_ref())? {
 ///     ExemplarSource::Image(ex) => println!("an image of {}x{}", ex.width, ex.height),
 ///     ExemplarSource::Analysis(a) => println!("an analysis with k = {}", a.k),

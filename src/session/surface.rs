@@ -4,7 +4,7 @@
 //! renders out.
 //!
 //! ```no_run
-//! use texsyn::session::SurfaceSession;
+//! use texsyn::SurfaceSession;
 //!
 //! let session = SurfaceSession::builder()
 //!     .mesh_path("assets/meshes/bunny.glb")
@@ -208,7 +208,7 @@ impl SurfaceSession {
     /// [`SurfaceBuilder::build`].
     ///
     /// ```no_run
-    /// use texsyn::session::SurfaceSession;
+    /// use texsyn::SurfaceSession;
     /// use texsyn::surface::tangent_field::DirectionSource;
     ///
     /// SurfaceSession::builder()

@@ -6,7 +6,7 @@
 //!
 //! ```no_run
 //! use texsyn::flow::Flow;
-//! use texsyn::session::AdvectSession;
+//! use texsyn::AdvectSession;
 //!
 //! let mut session = AdvectSession::builder()
 //!     .exemplar_path("assets/gravel.png")
@@ -199,7 +199,7 @@ impl AdvectSession {
     /// [`AdvectSessionBuilder::build`].
     ///
     /// ```no_run
-    /// use texsyn::session::{AdvectScheme, AdvectSession};
+    /// use texsyn::{AdvectScheme, AdvectSession};
     /// let mut session = AdvectSession::builder()
     ///     .exemplar_path("assets/gravel.png")
     ///     .mesh_path("bunny.glb")
