@@ -277,7 +277,8 @@ impl Field {
         }
     }
 
-    /// Checks user-given values: every parameter finite, scales positive.
+    /// Checks user-given values: every parameter finite; a constant field's scales within
+    /// `1/MAX_SCALE..=MAX_SCALE` (positive: a mirror is not a magnification).
     pub fn validate(&self) -> Result<()> {
         let bad = |what: &str| Err(Error::InvalidParameter(format!("field: {what}")));
         let finite = |v: &[f64]| v.iter().all(|x| x.is_finite());
@@ -292,6 +293,29 @@ impl Field {
                 }
                 if scale[0] == 0.0 || scale[1] == 0.0 {
                     return bad("a zero scale makes the texture vanish; use a scale > 0");
+                }
+                // A negative scale is a mirror or a half turn, not a magnification: say
+                // so rather than synthesize something else than asked.
+                if scale[0] < 0.0 || scale[1] < 0.0 {
+                    return bad(
+                        "a negative scale mirrors or turns the texture; use a scale > 0 \
+                         (and an angle to turn it)",
+                    );
+                }
+                // Magnifications outside 1/8..8 would be clamped: refuse them instead of
+                // synthesizing another scale in silence.
+                let lo = 1.0 / MAX_SCALE;
+                if let Some(s) = scale.iter().find(|s| !(lo..=MAX_SCALE).contains(*s)) {
+                    let hint = if *s > MAX_SCALE {
+                        "; for larger features use magnification (`--magnify`, \
+                         `SessionBuilder::magnify`)"
+                    } else {
+                        ""
+                    };
+                    return Err(Error::InvalidParameter(format!(
+                        "field: scale {s} is outside {lo}..{MAX_SCALE}, the magnifications \
+                         texsyn synthesizes{hint}"
+                    )));
                 }
             }
             Field::Vortex { center, scale } => {
@@ -606,5 +630,19 @@ mod tests {
             jacobians: vec![[[f64::INFINITY, 0.0], [0.0, 1.0]]],
         };
         assert!(Field::Map(Arc::new(m)).validate().is_err());
+        // Constant scales: positive and within 1/8..8, the range synthesized unclamped.
+        let constant = |sx: f64, sy: f64| {
+            Field::Constant {
+                angle: 0.0,
+                scale: [sx, sy],
+                shear: 0.0,
+            }
+            .validate()
+        };
+        assert!(constant(1.0, 1.0).is_ok());
+        assert!(constant(0.125, 8.0).is_ok());
+        assert!(constant(-1.0, 1.0).is_err());
+        assert!(constant(100.0, 1.0).is_err());
+        assert!(constant(1.0, 0.1).is_err());
     }
 }

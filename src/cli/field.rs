@@ -26,7 +26,7 @@ pub const FIELD_HELP: &str = "Anisometric synthesis along a Jacobian field. SPEC
                               pixels per output pixel); the output's size
 Positions are output pixels; defaults: the output's centre, R = half its smaller side, S = 1.
 The defaults follow the --window: give every position for windows of one field to fit together.
-Magnifications are clamped to 1/8..8 (singular or huge Jacobians too).";
+The scales of scale: and constant: lie in 1/8..8; varying fields are clamped to it per pixel.";
 
 /// A parsed `--field` argument (numbers still unresolved against the output size).
 #[derive(Clone, Debug)]

@@ -60,6 +60,13 @@ fn controls_end_to_end_and_their_bad_inputs() {
     fails_with(&["--field", "exr:nan.exr"], 1, "NaN");
     fails_with(&["--field", "rotate:abc"], 2, "not a number");
     fails_with(&["--field", "scale:0"], 1, "zero scale");
+    fails_with(&["--field", "scale:-1"], 1, "negative scale");
+    fails_with(&["--field", "scale:100"], 1, "outside 0.125..8");
+    fails_with(
+        &["--field", "constant:0,1,0.1,0"],
+        1,
+        "scale 0.1 is outside",
+    );
     fails_with(&["--field", "twirl"], 2, "unknown field");
     fails_with(&["--field", "image:missing.png"], 1, "missing.png");
     fails_with(&["--also", "small_map.png=o.png"], 1, "aligned");
