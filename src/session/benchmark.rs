@@ -6,6 +6,7 @@
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use super::check_output_size;
 use super::ExemplarSource;
 use crate::analysis::{self, AnalysisOptions, Progress};
 use crate::error::{Error, Result};
@@ -352,8 +353,8 @@ impl<'a> Benchmark<'a> {
                 },
                 ..self.params.clone()
             };
-            let fits = check_output_size(&ctx, w, h).is_ok();
-            let result = check_output_size(&ctx, w, h).and_then(|()| {
+            let fits = check_output_size(&ctx, w, h, BENCH_HINT).is_ok();
+            let result = check_output_size(&ctx, w, h, BENCH_HINT).and_then(|()| {
                 let gpu = time_runs(self.warmup, self.runs, || {
                     synthesizer.synthesize(&params).map_err(with_hint)?;
                     ctx.take_uncaptured_errors()
@@ -473,34 +474,4 @@ fn with_hint(e: Error) -> Error {
         },
         other => other,
     }
-}
-
-/// Refuses an output larger than the device takes in one piece, before trying: its
-/// side against the texture limit, its coordinate pyramid's finest level against the
-/// largest buffer binding (the synthesis checks the whole pyramid).
-fn check_output_size(ctx: &GpuContext, width: u32, height: u32) -> Result<()> {
-    let limits = ctx.limits();
-    let max_dim = limits.max_texture_dimension_2d;
-    let too_large = |limit: String| Error::TooLarge {
-        what: "output",
-        width,
-        height,
-        limit,
-        hint: BENCH_HINT,
-    };
-    if width > max_dim || height > max_dim {
-        return Err(too_large(format!("at most {max_dim} pixels a side")));
-    }
-    let bytes = width as u64 * height as u64 * 8;
-    let max = limits
-        .max_storage_buffer_binding_size
-        .min(limits.max_buffer_size);
-    if bytes > max {
-        return Err(too_large(format!(
-            "its coordinate pyramid needs more than {} MiB in one buffer, the device allows {} MiB",
-            bytes >> 20,
-            max >> 20
-        )));
-    }
-    Ok(())
 }

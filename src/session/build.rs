@@ -152,7 +152,7 @@ impl SessionBuilder {
         // An output larger than the device takes in one piece is synthesized in windows
         // and assembled (the same bytes); a periodic or magnified one cannot be split.
         let mut windowed = false;
-        if let Err(e) = super::check_output_size(&ctx, width, height) {
+        if let Err(e) = super::check_output_size(&ctx, width, height, super::API_WINDOW_HINT) {
             if params.tileable_output || self.magnify.is_some() {
                 return Err(e);
             }

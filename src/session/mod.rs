@@ -246,11 +246,20 @@ impl Session {
     }
 }
 
+/// What to do with an output too large for one piece, in the API's terms.
+const API_WINDOW_HINT: &str = "synthesize it in windows (SynthParams::origin) and assemble them";
+
 /// The error for an output larger than the device allows, checked before the analysis
 /// and the plan (the plan rejects huge outputs with a less specific message). The buffer
 /// check is a lower bound (the finest level alone); [`GpuSynthesizer::fits`] checks the
 /// whole pyramid.
-fn check_output_size(ctx: &GpuContext, width: u32, height: u32) -> Result<()> {
+/// `hint` says what to do instead (the API's way, or a command's).
+pub(crate) fn check_output_size(
+    ctx: &GpuContext,
+    width: u32,
+    height: u32,
+    hint: &'static str,
+) -> Result<()> {
     let limits = ctx.limits();
     let max_dim = limits.max_texture_dimension_2d;
     let too_large = |limit: String| Error::TooLarge {
@@ -258,7 +267,7 @@ fn check_output_size(ctx: &GpuContext, width: u32, height: u32) -> Result<()> {
         width,
         height,
         limit,
-        hint: "synthesize it in windows (SynthParams::origin) and assemble them",
+        hint,
     };
     if width > max_dim || height > max_dim {
         return Err(too_large(format!("at most {max_dim} pixels a side")));
@@ -326,26 +335,4 @@ pub fn load_source(
     }
 }
 
-/// Whether `path` starts with the analysis-file magic (a missing file is an error).
-pub fn is_analysis_file(path: &Path) -> Result<bool> {
-    use std::io::Read;
-    let mut f = crate::image_io::open_regular(path).map_err(|source| Error::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    let mut head = [0u8; 8];
-    let mut n = 0;
-    while n < head.len() {
-        match f.read(&mut head[n..]) {
-            Ok(0) => break,
-            Ok(k) => n += k,
-            Err(source) => {
-                return Err(Error::Io {
-                    path: path.to_path_buf(),
-                    source,
-                })
-            }
-        }
-    }
-    Ok(n == head.len() && head == analysis::file::MAGIC)
-}
+pub use crate::analysis::file::is_analysis_file;

@@ -82,7 +82,13 @@ impl Session {
     pub fn in_windows(&self, params: &SynthParams) -> bool {
         !params.tileable_output
             && self.magnified.is_none()
-            && (super::check_output_size(&self.context, params.width, params.height).is_err()
+            && (super::check_output_size(
+                &self.context,
+                params.width,
+                params.height,
+                super::API_WINDOW_HINT,
+            )
+            .is_err()
                 || !self.synthesizer.fits(params))
     }
 

@@ -45,7 +45,7 @@ use crate::quality::TemporalFigures;
 use crate::surface::mesh::Mesh;
 use crate::SynthParams;
 
-use super::ExemplarSource;
+use super::{check_output_size, ExemplarSource};
 
 /// The scheme as asked for: keep the texture's look or carry it, and the knobs of
 /// [`AdvectOptions`]. Knobs left `None` follow the chosen scheme
@@ -574,53 +574,16 @@ fn open_source(
     } else {
         ExemplarSource::open(&path)?
     };
-    match &source {
-        ExemplarSource::Image(_) => {
-            if let Some(frames @ 2..) = crate::image_io::animation_frames(&path) {
-                note(AdvectNote::AnimatedExemplar { path, frames });
-            }
-        }
-        ExemplarSource::Analysis(a) => {
-            if let Some(t) = tileable.filter(|&t| t != a.tileable) {
-                let flag = if t { "--tileable" } else { "--no-tileable" };
-                return Err(Error::InvalidParameter(format!(
-                    "{flag} does not match the analysis file {} (analysed as {}tileable); drop {flag} or re-run `texsyn analyze {flag}`",
-                    path.display(),
-                    if a.tileable { "" } else { "not " }
-                )));
-            }
+    if let ExemplarSource::Image(_) = &source {
+        if let Some(frames @ 2..) = crate::image_io::animation_frames(&path) {
+            note(AdvectNote::AnimatedExemplar {
+                path: path.clone(),
+                frames,
+            });
         }
     }
+    source.check_matches(&path, None, tileable)?;
     Ok(source)
-}
-
-/// Refuses an output larger than the device takes in one piece before anything of its
-/// size is allocated (the advection checks its whole pyramid once the plan exists).
-fn check_output_size(ctx: &GpuContext, width: u32, height: u32, hint: &'static str) -> Result<()> {
-    let limits = ctx.limits();
-    let max_dim = limits.max_texture_dimension_2d;
-    let too_large = |limit: String| Error::TooLarge {
-        what: "output",
-        width,
-        height,
-        limit,
-        hint,
-    };
-    if width > max_dim || height > max_dim {
-        return Err(too_large(format!("at most {max_dim} pixels a side")));
-    }
-    let bytes = width as u64 * height as u64 * 8;
-    let max = limits
-        .max_storage_buffer_binding_size
-        .min(limits.max_buffer_size);
-    if bytes > max {
-        return Err(too_large(format!(
-            "its coordinate pyramid needs more than {} MiB in one buffer, the device allows {} MiB",
-            bytes >> 20,
-            max >> 20
-        )));
-    }
-    Ok(())
 }
 
 /// Reads a glTF mesh file (the `gltf` feature).
